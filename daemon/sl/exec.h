@@ -1,0 +1,156 @@
+/*
+ * The grid interpreter: runs a compiled shader over a grid of points at once,
+ * REYES-style. Varying registers hold one value per point, uniform ones a
+ * single value; varying control flow runs under a running-state mask;
+ * derivatives are finite differences over the grid's u/v topology.
+ *
+ * Data layout. A register's storage is floats. Uniform: element e, component
+ * c at data[e * ncomp + c]. Varying: data[(e * ncomp + c) * stride + i] for
+ * point i, where stride = sl_exec_stride(). Point (iu, iv) of an nu x nv grid
+ * is i = iv * nu + iu.
+ */
+#ifndef SL_EXEC_H
+#define SL_EXEC_H
+
+#include "ir.h"
+
+struct sl_exec;
+struct sl_tex_lookup;
+
+/** What the renderer (or a test) provides to a running shader. All callbacks may be NULL. */
+struct sl_host {
+	void *user;
+
+	/* ---- lights, for illuminance, ambient(), diffuse(), specular(), phong() ---- */
+	/** Number of lights visible to the shaded surface. */
+	int (*nlights)(void *user);
+	/**
+	 * Run light @i for the points of @surface where mask[i] is set (n points,
+	 * planar with @stride). Ps: surface positions (3 planes). Fill, for those
+	 * points: L: vector from the surface point to the light (3 planes);
+	 * Cl, Ol (3 planes each); lit[i] = 1 where the light reaches the point
+	 * (inside its illuminate cone), else 0. *ambient = true for a light with
+	 * no illuminate or solar (it only adds to ambient(): Cl is its colour).
+	 * Return false on failure (treated as no light).
+	 */
+	bool (*light)(void *user, int i, struct sl_exec *surface, uint32_t n, uint32_t stride,
+		      const uint8_t *mask, const float *Ps, float *L, float *Cl, float *Ol,
+		      uint8_t *lit, bool *ambient);
+	/** Light @i's __category string ("" when none). */
+	const char *(*light_category)(void *user, int i);
+	/**
+	 * lightsource(): read light @i's parameter @name (type @type, a enum
+	 * sl_basetype) into @out (floats, uniform layout if *varying is set to
+	 * false, else planar with stride) or @sout for strings. False if absent.
+	 */
+	bool (*light_message)(void *user, int i, const char *name, int type, float *out,
+			      const char **sout, bool *varying, uint32_t stride);
+
+	/* ---- coordinate systems ---- */
+	/** Matrix taking points in space @name to "current" space (row vectors, p' = p M). */
+	bool (*space)(void *user, const char *name, float m[16]);
+
+	/* ---- textures (see struct sl_tex_lookup) ---- */
+	bool (*texture)(void *user, const struct sl_tex_lookup *q);
+	bool (*environment)(void *user, const struct sl_tex_lookup *q);
+	bool (*shadow)(void *user, const struct sl_tex_lookup *q);
+	/** textureinfo(): "resolution" (2 floats), "type", "channels", "viewingmatrix", ... */
+	bool (*textureinfo)(void *user, const char *name, const char *query, int type,
+			    int arraylen, float *out, const char **sout);
+
+	/* ---- attribute(), option(), rendererinfo() ---- */
+	bool (*attribute)(void *user, const char *name, int type, int arraylen, float *out,
+			  const char **sout);
+	bool (*option)(void *user, const char *name, int type, int arraylen, float *out,
+		       const char **sout);
+	bool (*rendererinfo)(void *user, const char *name, int type, int arraylen, float *out,
+			     const char **sout);
+
+	/** printf() output; NULL prints to stdout. */
+	void (*print)(void *user, const char *text);
+};
+
+/** One filtered texture, environment or shadow lookup over the active points. */
+struct sl_tex_lookup {
+	const char *name;
+	int channel;        /* first channel */
+	int nchannels;      /* 1 (float result) or 3 (color) */
+	uint32_t n, stride;
+	const uint8_t *mask;
+	/*
+	 * The filter region's four corners per point (planar arrays of n floats).
+	 * texture: s[k], t[k]. environment: dir[k] (3 planes each, stride).
+	 * shadow: pos[k] (3 planes each, stride), in "current" space.
+	 */
+	const float *s[4], *t[4];
+	const float *dir[4];
+	const float *pos[4];
+	/* Options ("blur", ...); defaults in brackets. */
+	float blur, sblur, tblur;   /* [0] */
+	float width, swidth, twidth; /* [1] multiplies the filter region */
+	float samples;              /* [16 for shadow, 1 otherwise] */
+	float bias;                 /* [-1: the map's own] */
+	float fill;                 /* [0] value of missing channels */
+	const char *filter;         /* ["gaussian"] */
+	float *out;                 /* nchannels planes with stride */
+};
+
+/**
+ * An executor of @prog for grids of up to @maxpoints points. Owns register
+ * storage; @prog must outlive it. Returns NULL if @maxpoints is 0 or too big.
+ */
+struct sl_exec *sl_exec_create(const struct sl_program *prog, uint32_t maxpoints);
+void sl_exec_destroy(struct sl_exec *x);
+
+const struct sl_program *sl_exec_program(const struct sl_exec *x);
+uint32_t sl_exec_stride(const struct sl_exec *x);
+
+/** Grid shape for the next run: nu * nv <= maxpoints. nu or nv may be 1. */
+bool sl_exec_set_grid(struct sl_exec *x, uint32_t nu, uint32_t nv);
+
+/**
+ * Storage of a global, or NULL if the program does not use it. *varying says
+ * which layout. The host fills inputs (P, N, s, t, ...) before sl_exec_run()
+ * and reads outputs (Ci, Oi, P, N, L, Cl, ...) after.
+ */
+float *sl_exec_global(struct sl_exec *x, enum sl_global g, bool *varying);
+
+/** Storage of a register (see layout above). Strings: use sl_exec_reg_strings(). */
+float *sl_exec_reg(struct sl_exec *x, int32_t reg);
+const char **sl_exec_reg_strings(struct sl_exec *x, int32_t reg);
+
+/**
+ * Set parameter @name from @nvalues floats: one value for all points
+ * (uniform layout; nvalues = ncomp * max(1, arraylen)), or, for a varying
+ * parameter, nvalues = that times n, planar with stride n (copied into
+ * place). Point, vector and normal values are taken to be in "shader" space
+ * and transformed to "current" space. The default initializer then does not
+ * run. False (and a message on stderr) if there is no such parameter or the
+ * count does not fit.
+ */
+bool sl_exec_set_param(struct sl_exec *x, const char *name, const float *values,
+		       uint32_t nvalues);
+bool sl_exec_set_param_string(struct sl_exec *x, const char *name, const char *value);
+/** Forget all values set by sl_exec_set_param*(): defaults apply again. */
+void sl_exec_reset_params(struct sl_exec *x);
+
+/** Which shader a message-passing call reaches: surface(), displacement(), ... */
+enum sl_peer { SL_PEER_SURFACE, SL_PEER_DISPLACEMENT, SL_PEER_ATMOSPHERE, SL_PEER_COUNT };
+/** Let this shader read @peer's parameters by message passing (NULL to unset). */
+void sl_exec_set_peer(struct sl_exec *x, enum sl_peer which, struct sl_exec *peer);
+
+/**
+ * Run the shader over the grid (all points active) with @host (may be NULL).
+ * Returns false if it stopped on a run-time error (reported on stderr with
+ * the source location); outputs are then undefined. Never produces NaN or
+ * Inf from its own arithmetic (division by zero gives 0; domain errors give
+ * the nearest valid result).
+ */
+bool sl_exec_run(struct sl_exec *x, const struct sl_host *host);
+
+/** After a light shader's run: lit[i] is 1 where an illuminate/solar body ran for point i. */
+const uint8_t *sl_exec_lit_mask(const struct sl_exec *x);
+/** After a light shader's run: true if it executed no illuminate or solar (an ambient light). */
+bool sl_exec_is_ambient(const struct sl_exec *x);
+
+#endif

@@ -1,0 +1,160 @@
+/*
+ * Internals of the grid interpreter shared by its core (exec.c: storage,
+ * control flow, arithmetic) and its built-in library (exec_builtins.c).
+ */
+#ifndef SL_EXEC_IMPL_H
+#define SL_EXEC_IMPL_H
+
+#include "builtin.h"
+#include "exec.h"
+
+struct sl_exec {
+	const struct sl_program *prog;
+	uint32_t maxn;          /* capacity in points */
+	uint32_t stride;        /* plane stride of varying registers (= maxn) */
+	uint32_t nu, nv, n;     /* current grid; n = nu * nv */
+
+	float **data;           /* per register; NULL for string registers */
+	const char ***sdata;    /* per string register: 1 (uniform) or stride pointers */
+	bool *param_set;        /* per parameter: set by the host, skip its default */
+
+	uint8_t *mask;          /* running state: mask[i] != 0 when point i is active */
+	uint32_t nactive;       /* number of active points */
+
+	const struct sl_host *host;
+	struct sl_exec *peer[SL_PEER_COUNT];
+	int cur_light;          /* light being visited by the innermost illuminance, or -1 */
+
+	uint8_t *lit;           /* light shaders: points an illuminate/solar body ran for */
+	bool ran_illuminate;    /* light shaders: some illuminate/solar was executed */
+
+	bool failed;            /* a run-time error stopped the run */
+	uint8_t *warned;        /* per instruction: a warning was printed already */
+
+	/* Scratch floats, reset before each instruction (sl_exec_scratch). */
+	float *scratch;
+	size_t scratch_cap, scratch_used;
+	/* Strings made while running (format, concat): freed at the next run. */
+	struct rl_arena *strings;
+
+	/* Private state of exec.c (control-flow frames etc.). */
+	struct sl_exec_private *priv;
+};
+
+/** Is register @r varying? */
+static inline bool sl_x_varying(const struct sl_exec *x, int32_t r)
+{
+	return x->prog->regs[r].varying;
+}
+
+/** Component @c (counting across array elements: e * ncomp + c) of @r at point @i. */
+static inline float sl_x_get(const struct sl_exec *x, int32_t r, int c, uint32_t i)
+{
+	const float *d = x->data[r];
+	return x->prog->regs[r].varying ? d[(size_t)c * x->stride + i] : d[c];
+}
+
+static inline void sl_x_set(struct sl_exec *x, int32_t r, int c, uint32_t i, float v)
+{
+	float *d = x->data[r];
+	if (x->prog->regs[r].varying)
+		d[(size_t)c * x->stride + i] = v;
+	else
+		d[c] = v;
+}
+
+/** String value of @r at point @i. */
+static inline const char *sl_x_str(const struct sl_exec *x, int32_t r, uint32_t i)
+{
+	const char **d = x->sdata[r];
+	return x->prog->regs[r].varying ? d[i] : d[0];
+}
+
+static inline void sl_x_set_str(struct sl_exec *x, int32_t r, uint32_t i, const char *s)
+{
+	const char **d = x->sdata[r];
+	if (x->prog->regs[r].varying)
+		d[i] = s;
+	else
+		d[0] = s;
+}
+
+/**
+ * The points an instruction writing @dst works on: all grid points, tested
+ * with the mask, when @dst is varying; just point 0 (if any is active) when
+ * it is uniform (then all its operands are uniform too).
+ *
+ *   SL_X_EACH(x, in->dst, i) { ... sl_x_set(x, in->dst, 0, i, v); }
+ */
+#define SL_X_EACH(x, dst, i) \
+	for (uint32_t i = 0, u_ = ((dst) >= 0 && !sl_x_varying((x), (dst))), \
+		      n_ = u_ ? ((x)->nactive != 0) : (x)->n; i < n_; i++) \
+		if (u_ || (x)->mask[i])
+
+/** @n floats of scratch, valid until the next instruction. Aborts when memory is out. */
+float *sl_exec_scratch(struct sl_exec *x, size_t n);
+
+/** A string that lives until the next run. */
+const char *sl_exec_strdup(struct sl_exec *x, const char *s);
+
+/** Print "FILE:LINE:COL: warning: MESSAGE" once per instruction. */
+void sl_exec_warn_once(struct sl_exec *x, const struct sl_insn *in, const char *fmt, ...)
+	__attribute__((format(printf, 3, 4)));
+
+/** Print "FILE:LINE:COL: error: MESSAGE" and stop the run (x->failed). */
+void sl_exec_fail(struct sl_exec *x, const struct sl_insn *in, const char *fmt, ...)
+	__attribute__((format(printf, 3, 4)));
+
+/**
+ * Derivatives of the plane @f (n values, point layout) with respect to the
+ * surface parameters u and v: central differences inside the grid, one-sided
+ * second-order ones at its edges, divided by du and dv (the globals' values).
+ * A grid one point wide in u (or v) gives 0 for that derivative. @dfdu or
+ * @dfdv may be NULL.
+ */
+void sl_exec_deriv(struct sl_exec *x, const float *f, float *dfdu, float *dfdv);
+
+/** The global du and dv of this run (uniform values; 1 when the program has none). */
+float sl_exec_du(const struct sl_exec *x);
+float sl_exec_dv(const struct sl_exec *x);
+
+/**
+ * Matrix taking space @name to "current" space: "current" and "camera" are
+ * the identity unless the host says otherwise; other names ask the host.
+ * Unknown names warn once (at @in) and give the identity; returns false then.
+ */
+bool sl_exec_space(struct sl_exec *x, const struct sl_insn *in, const char *name, float m[16]);
+
+/** Results of one light at the active points (planar, stride x->stride). */
+struct sl_light_result {
+	float *L;        /* surface point -> light */
+	float *Cl, *Ol;
+	uint8_t *lit;    /* reaches the point */
+	bool ambient;    /* ambient light: contributes to ambient() only */
+};
+
+/** Number of lights the host offers (0 without a host). */
+int sl_exec_nlights(struct sl_exec *x);
+
+/**
+ * Evaluate light @i at positions @Ps (3 planes, stride x->stride) for the
+ * active points. Buffers in @res are scratch owned by @x and stay valid
+ * until the next call of sl_exec_light() with the same @slot (0 or 1).
+ * False if the host failed or has no lights.
+ */
+bool sl_exec_light(struct sl_exec *x, int i, int slot, const float *Ps,
+		   struct sl_light_result *res);
+
+/** Light @i's category ("" when none). */
+const char *sl_exec_light_category(struct sl_exec *x, int i);
+
+/**
+ * Does category string @cat (as written in illuminance: "name", "-name",
+ * "a,b", "" for all) select a light whose __category is @light_cat?
+ */
+bool sl_category_match(const char *cat, const char *light_cat);
+
+/** Run built-in call @in (SL_OP_CALL). Implemented in exec_builtins.c. */
+void sl_exec_builtin(struct sl_exec *x, const struct sl_insn *in);
+
+#endif

@@ -1,0 +1,73 @@
+/*
+ * relight's RenderMan Shading Language front end: compile a shader to a
+ * typed IR (struct sl_program), inspect it, and run it on grids of points
+ * with the grid interpreter (exec.h).
+ */
+#ifndef SL_H
+#define SL_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdio.h>
+
+/** Options for one compilation. Zero-initialized options are valid. */
+struct sl_options {
+	/** Directories searched by #include "x" after the including file's own. */
+	const char *const *include_dirs;
+	size_t n_include_dirs;
+	/** -D definitions: "NAME" (defined as 1) or "NAME=VALUE". */
+	const char *const *defines;
+	size_t n_defines;
+	/** Where diagnostics go; NULL means stderr. */
+	FILE *diag;
+	/** Stop after this many errors; 0 means 20. */
+	int max_errors;
+};
+
+enum sl_shader_kind {
+	SL_SHADER_SURFACE,
+	SL_SHADER_LIGHT,
+	SL_SHADER_DISPLACEMENT,
+	SL_SHADER_VOLUME,
+	SL_SHADER_IMAGER,
+};
+
+/** A compiled shader: its IR, parameters and metadata. Immutable once built. */
+struct sl_program;
+
+/**
+ * Compile the shader in the file at @path. Diagnostics go to opts->diag as
+ * "FILE:LINE:COL: error: MESSAGE". Returns NULL when there were errors.
+ * The file must define exactly one shader (plus any functions).
+ */
+struct sl_program *sl_compile_file(const char *path, const struct sl_options *opts);
+
+/** Same as sl_compile_file() for source held in memory; @name is used in diagnostics. */
+struct sl_program *sl_compile_string(const char *name, const char *src, size_t len,
+				     const struct sl_options *opts);
+
+/** Free a program. Accepts NULL. */
+void sl_program_destroy(struct sl_program *prog);
+
+/** What to print with sl_emit(). */
+enum sl_emit_kind {
+	SL_EMIT_AST,    /* the parsed tree, one node a line */
+	SL_EMIT_IR,     /* the IR, one instruction a line */
+	SL_EMIT_REPORT, /* JSON: name, type, parameters, instruction counts */
+};
+
+/**
+ * Parse only (no semantic checks) and print the AST of the file at @path to
+ * @out. Returns false on errors (reported to opts->diag).
+ */
+bool sl_emit_ast_file(const char *path, const struct sl_options *opts, FILE *out);
+
+/** Print @prog's IR or JSON report to @out. */
+void sl_emit(const struct sl_program *prog, enum sl_emit_kind kind, FILE *out);
+
+/** The shader's name and kind. */
+const char *sl_program_name(const struct sl_program *prog);
+enum sl_shader_kind sl_program_kind(const struct sl_program *prog);
+const char *sl_shader_kind_name(enum sl_shader_kind kind);
+
+#endif
