@@ -37,6 +37,8 @@ enum sl_bi {
 	SL_BI_LIGHTSOURCE, SL_BI_SURFACE, SL_BI_ATTRIBUTE, SL_BI_OPTION, SL_BI_RENDERERINFO,
 	/* strings */
 	SL_BI_PRINTF, SL_BI_FORMAT, SL_BI_CONCAT, SL_BI_MATCH,
+	/* internal: m * (space -> current), for `matrix "space" (...)` */
+	SL_BI_SPACEMATRIX,
 	SL_BI_COUNT
 };
 
