@@ -1,2 +1,312 @@
-/* placeholder */
+/*
+ * `relight compile`: compile an RSL shader with the library's public API
+ * (sl.h) and, on request, print its AST, IR or a JSON report.
+ */
+#include "cmd.h"
+#include "config.h"
 #include "sl.h"
+
+#include <errno.h>
+#include <getopt.h>
+#include <stdarg.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+enum emit_mode { EMIT_NONE, EMIT_AST, EMIT_IR, EMIT_REPORT };
+
+static void usage(FILE *out)
+{
+	fprintf(out,
+		"usage: relight compile [OPTIONS] FILE.sl\n"
+		"\n"
+		"Compile an RSL shader: preprocess, parse, check types and lower it to the\n"
+		"IR. Errors are printed as FILE:LINE:COL: error: MESSAGE. With no --emit,\n"
+		"nothing is printed on success.\n"
+		"\n"
+		"Options:\n"
+		"  --emit KIND           Print a result on success; KIND is one of:\n"
+		"                          ast     the parse tree, one node a line (parsing\n"
+		"                                  only: types are not checked)\n"
+		"                          ir      the typed IR, one instruction a line\n"
+		"                          report  JSON: name, type, parameters and\n"
+		"                                  instruction counts\n"
+		"  -I DIR, --include DIR\n"
+		"                        Search DIR for #include files (after the including\n"
+		"                        file's own directory); may be repeated\n"
+		"  -D NAME[=VALUE], --define NAME[=VALUE]\n"
+		"                        Define a preprocessor macro (VALUE defaults to 1);\n"
+		"                        may be repeated\n"
+		"  -o FILE, --output FILE\n"
+		"                        Write the --emit result to FILE instead of standard\n"
+		"                        output (only written when compilation succeeds)\n"
+		"  -h, --help            Show this help and exit\n"
+		"\n"
+		"-IDIR and -DNAME may also be written joined. If FILE.sl does not exist and\n"
+		"contains no '/', it is looked for (also with .sl appended) in each directory\n"
+		"of $RELIGHT_SHADER_PATH (colon-separated), then in the project's shader\n"
+		"library (%s).\n"
+		"\n"
+		"Exit status: 0 on success, 1 if the shader has errors or cannot be read or\n"
+		"the output cannot be written, 2 on a usage error.\n",
+		RELIGHT_SOURCE_SHADER_DIR);
+}
+
+static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+static int usage_error(const char *fmt, ...)
+{
+	va_list ap;
+	fprintf(stderr, "relight compile: ");
+	va_start(ap, fmt);
+	vfprintf(stderr, fmt, ap);
+	va_end(ap);
+	fprintf(stderr, "\nRun 'relight compile --help' for usage.\n");
+	return CMD_USAGE;
+}
+
+static bool is_file(const char *path)
+{
+	struct stat st;
+	return stat(path, &st) == 0 && !S_ISDIR(st.st_mode);
+}
+
+static bool ends_with(const char *s, const char *suffix)
+{
+	size_t ls = strlen(s), lx = strlen(suffix);
+	return ls >= lx && strcmp(s + ls - lx, suffix) == 0;
+}
+
+/*
+ * Look for @name as "DIR/name" (and "DIR/name.sl" when @name lacks the
+ * suffix) in directory @dir of length @dirlen. Returns a malloc'd path or NULL.
+ */
+static char *try_dir(const char *dir, size_t dirlen, const char *name)
+{
+	if (dirlen == 0)
+		return NULL;
+	for (int pass = 0; pass < 2; pass++) {
+		const char *ext = pass ? ".sl" : "";
+		if (pass && ends_with(name, ".sl"))
+			break;
+		size_t size = dirlen + 1 + strlen(name) + strlen(ext) + 1;
+		char *path = malloc(size);
+		if (!path)
+			return NULL;
+		snprintf(path, size, "%.*s/%s%s", (int)dirlen, dir, name, ext);
+		if (is_file(path))
+			return path;
+		free(path);
+	}
+	return NULL;
+}
+
+/*
+ * Where the shader named on the command line is: the path as given if it
+ * exists; for a bare name, the search path. Returns a malloc'd path or NULL.
+ */
+static char *find_shader(const char *name)
+{
+	if (is_file(name) || strchr(name, '/'))
+		return strdup(name);
+
+	const char *path = getenv("RELIGHT_SHADER_PATH");
+	if (path) {
+		for (const char *p = path;;) {
+			const char *colon = strchr(p, ':');
+			size_t len = colon ? (size_t)(colon - p) : strlen(p);
+			char *found = try_dir(p, len, name);
+			if (found)
+				return found;
+			if (!colon)
+				break;
+			p = colon + 1;
+		}
+	}
+	return try_dir(RELIGHT_SOURCE_SHADER_DIR, strlen(RELIGHT_SOURCE_SHADER_DIR), name);
+}
+
+/* A -D argument is NAME or NAME=VALUE, NAME an identifier. */
+static bool valid_define(const char *def)
+{
+	const char *p = def;
+	if (!(*p == '_' || (*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z')))
+		return false;
+	for (p++; *p && *p != '='; p++)
+		if (!(*p == '_' || (*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z') ||
+		      (*p >= '0' && *p <= '9')))
+			return false;
+	return true;
+}
+
+/* Copy the buffered result to @out_path (or stdout). */
+static int write_output(const char *out_path, const char *data, size_t len)
+{
+	FILE *f = out_path ? fopen(out_path, "w") : stdout;
+	if (!f) {
+		fprintf(stderr, "relight compile: cannot write '%s': %s\n", out_path,
+			strerror(errno));
+		return CMD_FAILED;
+	}
+	bool ok = fwrite(data, 1, len, f) == len;
+	ok = (out_path ? fclose(f) == 0 : fflush(f) == 0) && ok;
+	if (!ok) {
+		fprintf(stderr, "relight compile: error writing '%s': %s\n",
+			out_path ? out_path : "standard output", strerror(errno));
+		return CMD_FAILED;
+	}
+	return CMD_OK;
+}
+
+/* The parsed command line. The strings point into argv. */
+struct compile_args {
+	enum emit_mode emit;
+	const char *out_path;
+	const char *input;
+	const char **incs, **defs;
+	size_t nincs, ndefs;
+};
+
+/* Parse the options of `relight compile`; returns -1 to go on, else the exit status. */
+static int parse_args(int argc, char **argv, struct compile_args *args)
+{
+	static const struct option long_opts[] = {
+		{ "emit", required_argument, NULL, 'e' },
+		{ "include", required_argument, NULL, 'I' },
+		{ "define", required_argument, NULL, 'D' },
+		{ "output", required_argument, NULL, 'o' },
+		{ "help", no_argument, NULL, 'h' },
+		{ NULL, 0, NULL, 0 },
+	};
+	int opt;
+
+	opterr = 0;
+	optind = 1;
+	while ((opt = getopt_long(argc, argv, ":hI:D:o:", long_opts, NULL)) != -1) {
+		switch (opt) {
+		case 'h':
+			usage(stdout);
+			return CMD_OK;
+		case 'e':
+			if (strcmp(optarg, "ast") == 0)
+				args->emit = EMIT_AST;
+			else if (strcmp(optarg, "ir") == 0)
+				args->emit = EMIT_IR;
+			else if (strcmp(optarg, "report") == 0)
+				args->emit = EMIT_REPORT;
+			else
+				return usage_error("unknown --emit kind '%s' (expected ast, ir or "
+						   "report)", optarg);
+			break;
+		case 'I':
+			if (!*optarg)
+				return usage_error("-I needs a directory");
+			args->incs[args->nincs++] = optarg;
+			break;
+		case 'D':
+			if (!valid_define(optarg))
+				return usage_error("bad definition '%s' for -D (expected NAME or "
+						   "NAME=VALUE)", optarg);
+			args->defs[args->ndefs++] = optarg;
+			break;
+		case 'o':
+			args->out_path = optarg;
+			break;
+		case ':':
+			return usage_error("option '%s' needs an argument", argv[optind - 1]);
+		default:
+			if (optopt && optopt != '?') {
+				char bad[3] = { '-', (char)optopt, 0 };
+				return usage_error("unknown option '%s'", bad);
+			}
+			return usage_error("unknown option '%s'", argv[optind - 1]);
+		}
+	}
+
+	if (optind >= argc)
+		return usage_error("no input file");
+	if (argc - optind > 1)
+		return usage_error("one input file expected; extra argument '%s'",
+				   argv[optind + 1]);
+	if (args->out_path && args->emit == EMIT_NONE)
+		return usage_error("-o needs --emit (there is nothing to write otherwise)");
+	args->input = argv[optind];
+	return -1;
+}
+
+/* Compile (or parse, for --emit ast) and print or write the result. */
+static int run(const struct compile_args *args)
+{
+	char *path = find_shader(args->input);
+	if (!path || !is_file(path)) {
+		struct stat st;
+		if (path && stat(path, &st) == 0)
+			fprintf(stderr, "relight compile: '%s' is a directory\n", path);
+		else
+			fprintf(stderr, "relight compile: cannot open '%s': %s\n", args->input,
+				strerror(ENOENT));
+		free(path);
+		return CMD_FAILED;
+	}
+
+	struct sl_options opts = {
+		.include_dirs = args->incs,
+		.n_include_dirs = args->nincs,
+		.defines = args->defs,
+		.n_defines = args->ndefs,
+		.diag = stderr,
+	};
+
+	/* The result is buffered so that nothing is printed or written on failure. */
+	char *buf = NULL;
+	size_t buflen = 0;
+	FILE *mem = open_memstream(&buf, &buflen);
+	if (!mem) {
+		fprintf(stderr, "relight compile: %s\n", strerror(errno));
+		free(path);
+		return CMD_FAILED;
+	}
+
+	bool ok;
+	if (args->emit == EMIT_AST) {
+		ok = sl_emit_ast_file(path, &opts, mem);
+	} else {
+		struct sl_program *prog = sl_compile_file(path, &opts);
+		ok = prog != NULL;
+		if (prog && args->emit == EMIT_IR)
+			sl_emit(prog, SL_EMIT_IR, mem);
+		else if (prog && args->emit == EMIT_REPORT)
+			sl_emit(prog, SL_EMIT_REPORT, mem);
+		sl_program_destroy(prog);
+	}
+	fclose(mem);
+
+	int status = CMD_FAILED;
+	if (ok)
+		status = args->emit == EMIT_NONE ? CMD_OK
+						 : write_output(args->out_path, buf, buflen);
+	free(buf);
+	free(path);
+	return status;
+}
+
+int cmd_compile(int argc, char **argv)
+{
+	/* At most argc of each. */
+	struct compile_args args = {
+		.emit = EMIT_NONE,
+		.incs = calloc((size_t)argc + 1, sizeof(char *)),
+		.defs = calloc((size_t)argc + 1, sizeof(char *)),
+	};
+	int status = CMD_FAILED;
+
+	if (!args.incs || !args.defs)
+		fprintf(stderr, "relight compile: out of memory\n");
+	else if ((status = parse_args(argc, argv, &args)) < 0)
+		status = run(&args);
+	free(args.incs);
+	free(args.defs);
+	return status;
+}

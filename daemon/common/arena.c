@@ -132,12 +132,16 @@ char *rl_arena_strdup(struct rl_arena *arena, const char *s)
 
 char *rl_arena_printf(struct rl_arena *arena, const char *fmt, ...)
 {
+	/* Most results fit a small buffer: format once there, again only if not. */
+	char small[256];
 	va_list ap;
 	va_start(ap, fmt);
-	int n = vsnprintf(NULL, 0, fmt, ap);
+	int n = vsnprintf(small, sizeof(small), fmt, ap);
 	va_end(ap);
 	if (n < 0)
 		return rl_arena_strdup(arena, "");
+	if ((size_t)n < sizeof(small))
+		return rl_arena_strndup(arena, small, (size_t)n);
 	char *d = rl_arena_alloc(arena, (size_t)n + 1);
 	va_start(ap, fmt);
 	vsnprintf(d, (size_t)n + 1, fmt, ap);

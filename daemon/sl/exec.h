@@ -40,11 +40,11 @@ struct sl_host {
 	const char *(*light_category)(void *user, int i);
 	/**
 	 * lightsource(): read light @i's parameter @name (type @type, a enum
-	 * sl_basetype) into @out (floats, uniform layout if *varying is set to
+	 * sl_basetype; @arraylen elements, 0 for a non-array) into @out (floats, uniform layout if *varying is set to
 	 * false, else planar with stride) or @sout for strings. False if absent.
 	 */
-	bool (*light_message)(void *user, int i, const char *name, int type, float *out,
-			      const char **sout, bool *varying, uint32_t stride);
+	bool (*light_message)(void *user, int i, const char *name, int type, int arraylen,
+			      float *out, const char **sout, bool *varying, uint32_t stride);
 
 	/* ---- coordinate systems ---- */
 	/** Matrix taking points in space @name to "current" space (row vectors, p' = p M). */

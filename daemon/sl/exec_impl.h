@@ -29,6 +29,7 @@ struct sl_exec {
 	bool ran_illuminate;    /* light shaders: some illuminate/solar was executed */
 
 	bool failed;            /* a run-time error stopped the run */
+	uint32_t random_calls;  /* random() calls so far in this run */
 	uint8_t *warned;        /* per instruction: a warning was printed already */
 
 	/* Scratch floats, reset before each instruction (sl_exec_scratch). */

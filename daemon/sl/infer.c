@@ -157,7 +157,9 @@ static void pass(struct infer *f)
 		if (in->op == SL_OP_CALL && in->bi >= 0) {
 			b = &sl_builtins[in->bi];
 			sig = strchr(b->sig, ':') + 1;
-			if (b->flags & (SL_BIF_VARYING | SL_BIF_LIGHTS))
+			/* Built-ins that read globals (s, t, Ng, P...) without taking
+			 * them as arguments vary as those do. */
+			if (b->flags & (SL_BIF_VARYING | SL_BIF_LIGHTS | SL_BIF_GLOBALS))
 				v = true;
 		}
 		/* Inputs: every argument that is not an output of a built-in. */

@@ -473,8 +473,10 @@ static int score_builtin(struct sema *s, const struct sl_builtin *b, struct sl_a
 		}
 		cost += c * 4;
 	}
+	/* A variadic overload fits worse the more arguments its '*' absorbs:
+	 * texture(name, s, t) is the (s, t) form, not the one with no coordinates. */
 	if (rest)
-		cost += 1;
+		cost += 1 + 2 * (nargs - np);
 	/* Result type: prefer the one the context asks for. */
 	struct sl_type r = sl_sig_type(b->sig[0]);
 	if (expect.base != SL_TYPE_VOID && expect.arraylen < 0) {

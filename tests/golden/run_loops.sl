@@ -17,7 +17,7 @@
 // expect: cnt[2] = 3 ~0
 // expect: cnt[3] = 6 ~0
 // a uniform loop stays uniform and runs for every point
-// expect: k[0] = 10 ~0
+// expect: k[0] = 6 ~0
 surface run_loops(output varying float n = 0, m = 0, cnt = 0; output uniform float k = 0)
 {
 	float i;

@@ -1,0 +1,20 @@
+/*
+ * The subcommands of the `relight` program. Each takes the arguments that
+ * follow `relight` (argv[0] is the subcommand's own name), prints its own
+ * messages, and returns the process exit status: 0 on success, 1 when the
+ * work failed (for example a shader with errors), 2 on a usage error.
+ */
+#ifndef CMD_H
+#define CMD_H
+
+/** Exit statuses shared by every subcommand. */
+enum {
+	CMD_OK = 0,
+	CMD_FAILED = 1,
+	CMD_USAGE = 2,
+};
+
+/** `relight compile`: check an RSL shader; optionally print its AST, IR or a report. */
+int cmd_compile(int argc, char **argv);
+
+#endif

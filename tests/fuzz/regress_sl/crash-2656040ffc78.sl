@@ -1,0 +1,2 @@
+#define DEG(x) radians(x)
+light spot(float int#define DEG()ensiCl
