@@ -2053,6 +2053,9 @@ static void run_range(struct sl_exec *x, uint32_t pc, uint32_t end)
 			pc = dead_pc(x, pc, base, end);
 			continue;
 		}
+		/* Work done, for benchmarks: points written by this instruction. */
+		if (in->dst >= 0)
+			x->ops += prog->regs[in->dst].varying ? x->nactive : 1;
 		switch ((enum sl_op)in->op) {
 		case SL_OP_NOP:
 			pc++;
@@ -2343,4 +2346,9 @@ bool sl_exec_space(struct sl_exec *x, const struct sl_insn *in, const char *name
 		return true;
 	sl_exec_warn_once(x, in, "unknown coordinate system '%s' (identity used)", name);
 	return false;
+}
+
+uint64_t sl_exec_op_count(const struct sl_exec *x)
+{
+	return x->ops;
 }

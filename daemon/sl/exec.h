@@ -148,6 +148,13 @@ void sl_exec_set_peer(struct sl_exec *x, enum sl_peer which, struct sl_exec *pee
  */
 bool sl_exec_run(struct sl_exec *x, const struct sl_host *host);
 
+/**
+ * Operations executed by all runs so far: each executed instruction that
+ * writes a result counts one per active point when the result is varying, one
+ * when it is uniform (a benchmark's unit of work).
+ */
+uint64_t sl_exec_op_count(const struct sl_exec *x);
+
 /** After a light shader's run: lit[i] is 1 where an illuminate/solar body ran for point i. */
 const uint8_t *sl_exec_lit_mask(const struct sl_exec *x);
 /** After a light shader's run: true if it executed no illuminate or solar (an ambient light). */

@@ -30,6 +30,7 @@ struct sl_exec {
 
 	bool failed;            /* a run-time error stopped the run */
 	uint32_t random_calls;  /* random() calls so far in this run */
+	uint64_t ops;           /* operations executed (see sl_exec_op_count) */
 	uint8_t *warned;        /* per instruction: a warning was printed already */
 
 	/* Scratch floats, reset before each instruction (sl_exec_scratch). */

@@ -250,6 +250,25 @@ bool sl_infer(struct sl_ctx *ctx, struct sl_program *prog)
 		}
 		reg->varying = f.var[r];
 	}
+	/* Names of textures, coordinate systems' partners and messages are looked
+	 * up once per grid: they must not vary from point to point. */
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		const struct sl_insn *in = &prog->code[i];
+		if (in->op != SL_OP_CALL || in->bi < 0 || in->nargs == 0)
+			continue;
+		const struct sl_builtin *b = &sl_builtins[in->bi];
+		if (!(b->flags & (SL_BIF_TEXNAME | SL_BIF_MESSAGE)))
+			continue;
+		if (prog->regs[in->args[0]].varying) {
+			sl_error(ctx, in->loc, "the name given to %s() must be uniform, not varying",
+				 b->name);
+			ok = false;
+		}
+		if ((b->flags & SL_BIF_TEXNAME) && in->nargs > 1 && prog->regs[in->args[1]].varying) {
+			sl_error(ctx, in->loc, "the channel given to %s() must be uniform", b->name);
+			ok = false;
+		}
+	}
 	free(f.var);
 	free(f.why);
 	free(f.why_ctl);

@@ -1,0 +1,91 @@
+# Helpers for the shell tests of the relight command. A test script runs as
+#   bash tests/cli/NAME.sh PATH/TO/relight
+# sources this file, calls `run` and the `expect_*` checks, and ends with
+# `finish`, which prints "N checks, N failed" and sets the exit status.
+
+set -u
+
+relight=${1:?usage: $0 PATH/TO/relight}
+# absolute, as some tests change directory
+relight="$(cd "$(dirname "$relight")" && pwd)/$(basename "$relight")"
+source_dir=${RELIGHT_SOURCE_DIR:-$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)}
+checks=0
+failures=0
+what=""
+
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+# Seconds one command may take before it counts as hung.
+limit=${RELIGHT_CLI_TIMEOUT:-60}
+
+fail() {
+	failures=$((failures + 1))
+	printf '%s: [%s] %s\n' "$(basename "$0")" "$what" "$*" >&2
+	if [ -s "$work/stderr" ]; then
+		printf '  stderr was:\n' >&2
+		head -c 2000 "$work/stderr" | sed 's/^/    /' >&2
+	fi
+}
+
+# run DESCRIPTION CMD [ARGS]: run with a time limit; keep stdout, stderr and
+# the exit status (in $status) for the checks that follow.
+run() {
+	what=$1
+	shift
+	status=0
+	timeout "$limit" "$@" >"$work/stdout" 2>"$work/stderr" || status=$?
+}
+
+expect_status() {
+	checks=$((checks + 1))
+	if [ "$status" -eq 124 ]; then
+		fail "timed out after ${limit}s"
+	elif [ "$status" -ne "$1" ]; then
+		fail "exit status $status, expected $1"
+	fi
+}
+
+# The command ended on its own, without a signal (status < 128) or a sanitizer report.
+expect_no_crash() {
+	checks=$((checks + 1))
+	if [ "$status" -eq 124 ] || [ "$status" -ge 128 ]; then
+		fail "crashed or hung: exit status $status"
+	elif grep -qE 'AddressSanitizer|LeakSanitizer|runtime error:' "$work/stderr"; then
+		fail "sanitizer report"
+	fi
+}
+
+# expect_stdout REGEX / expect_stderr REGEX: some line matches (grep -E).
+expect_stdout() {
+	checks=$((checks + 1))
+	grep -qE -- "$1" "$work/stdout" || fail "stdout has no line matching '$1'"
+}
+
+expect_stderr() {
+	checks=$((checks + 1))
+	grep -qE -- "$1" "$work/stderr" || fail "stderr has no line matching '$1'"
+}
+
+expect_empty_stdout() {
+	checks=$((checks + 1))
+	[ ! -s "$work/stdout" ] || fail "stdout is not empty: $(head -c 200 "$work/stdout")"
+}
+
+expect_empty_stderr() {
+	checks=$((checks + 1))
+	[ ! -s "$work/stderr" ] || fail "stderr is not empty"
+}
+
+# expect_true DESCRIPTION CMD [ARGS]: CMD succeeds.
+expect_true() {
+	local d=$1
+	shift
+	checks=$((checks + 1))
+	"$@" >/dev/null || fail "$d"
+}
+
+finish() {
+	echo "$checks checks, $failures failed"
+	[ "$failures" -eq 0 ]
+}
