@@ -1,0 +1,45 @@
+/*
+ * The RIB scene builder: the meaning of RIB requests. It keeps the
+ * graphics state (options, attribute and transform stacks, named
+ * coordinate systems, lights, object instances, motion blocks), compiles the
+ * shaders a scene names (once each), types parameter lists (inline
+ * declarations, Declare, or the shader's own parameter types), and hands
+ * each finished frame (at WorldEnd) to the caller. MakeTexture and
+ * MakeShadow run where they appear, so a shadow pass's map exists before the
+ * frame that uses it.
+ */
+#ifndef REYES_RI_H
+#define REYES_RI_H
+
+#include "rib.h"
+#include "scene.h"
+
+struct reyes_ri_opts {
+	FILE *diag;                    /* diagnostics, NULL: stderr */
+	int max_errors;                /* 0: 20 */
+	/*
+	 * The default shader search path ('@' in a searchpath option stands for
+	 * it): colon-separated; the project's shaders/ directory comes last.
+	 */
+	const char *default_shader_path;
+	const char *default_texture_path;
+	/** Replace the file name of the frame's first image display (relight render -o). */
+	const char *output_override;
+	/**
+	 * Called at each WorldEnd with the finished scene (owned by the builder,
+	 * valid during the call). Return false to stop (an error was reported).
+	 */
+	bool (*frame)(void *user, const struct reyes_scene *scene);
+	void *user;
+};
+
+/**
+ * Read the RIB file at @path and render its frames through opts->frame.
+ * Errors: "FILE:LINE: error: MESSAGE" (unknown requests, bad arguments,
+ * unbalanced blocks, missing shaders or archives, parameters of unknown
+ * type...). Unknown Option/Attribute names are warnings. Returns false if
+ * there was any error; *nerrors gets the count (may be NULL).
+ */
+bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerrors);
+
+#endif

@@ -1,0 +1,177 @@
+/*
+ * The scene the REYES renderer draws: options (camera, image, displays),
+ * attribute bundles, shader instances, lights and primitives, as the RIB
+ * scene builder (ri.c) leaves them after WorldEnd. Matrices are 4x4,
+ * row-major, RenderMan's row-vector convention (p' = p M, translation in
+ * elements 12..14). Everything lives in the scene's arena.
+ */
+#ifndef REYES_SCENE_H
+#define REYES_SCENE_H
+
+#include "exec.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+
+enum reyes_filter {
+	REYES_FILTER_BOX,
+	REYES_FILTER_TRIANGLE,
+	REYES_FILTER_CATMULLROM,
+	REYES_FILTER_GAUSSIAN,
+	REYES_FILTER_SINC,
+	REYES_FILTER_SEP_CATMULLROM,
+	REYES_FILTER_SEP_GAUSSIAN,
+};
+
+enum reyes_depthfilter { REYES_DEPTH_MIN, REYES_DEPTH_MAX, REYES_DEPTH_AVERAGE,
+			 REYES_DEPTH_MIDPOINT };
+
+/** One Display request. */
+struct reyes_display {
+	const char *name;       /* output file name ("+name" already stripped) */
+	const char *type;       /* "file", "openexr", "framebuffer", "zfile", "shadow", ... */
+	const char *mode;       /* "rgba", "rgb", "a", "z", "rgbaz", or an output variable (AOV) */
+	bool half;              /* write half floats (default for colour); "float" asked for float */
+	const char *file;       /* where it was requested */
+	uint32_t line;
+};
+
+struct reyes_options {
+	uint32_t xres, yres;            /* Format (default 640 480) */
+	float pixel_aspect;             /* default 1 */
+	float frame_aspect;             /* FrameAspectRatio, 0: xres*pixel_aspect/yres */
+	float screen[4];                /* ScreenWindow left right bottom top */
+	bool screen_set;                /* else derived from frame_aspect */
+	float crop[4];                  /* CropWindow xmin xmax ymin ymax (NDC), default 0 1 0 1 */
+	bool perspective;               /* Projection "perspective" (else orthographic) */
+	float fov;                      /* degrees, default 90 */
+	float clip_near, clip_far;      /* Clipping, default epsilon and infinity (1e30) */
+	float shutter[2];               /* Shutter, default 0 0 */
+	uint32_t xsamples, ysamples;    /* PixelSamples, default 2 2 */
+	enum reyes_filter filter;       /* PixelFilter, default gaussian 2 2 */
+	float filter_width[2];
+	float gain, gamma;              /* Exposure, default 1 1 */
+	struct reyes_display *displays; /* in order; default one "file" rgba display */
+	uint32_t ndisplays;
+	enum reyes_depthfilter depthfilter; /* Hider "hidden" "depthfilter", default min */
+	bool jitter;                    /* Hider "hidden" "jitter", default on */
+	float opacity_threshold;        /* a sample this opaque hides what is behind (0.996) */
+	const char *shader_path;        /* Option "searchpath": colon-separated, after & and @ */
+	const char *texture_path;
+	const char *archive_path;
+	float world_to_camera[16];      /* the transform at WorldBegin */
+	float camera_to_screen[16];     /* projection (from fov or orthographic) */
+};
+
+/** Parameter values given to a shader instance in RIB (typed by Declare or the shader). */
+struct reyes_param_value {
+	const char *name;
+	int type;                       /* enum sl_basetype */
+	uint32_t arraylen;              /* 0: not an array */
+	uint32_t nvalues;               /* floats (or strings) given */
+	const float *values;
+	const char *const *strings;
+};
+
+/** A Surface, Displacement or LightSource request. */
+struct reyes_shader {
+	const char *name;               /* shader name as written */
+	struct sl_program *prog;        /* compiled once per scene and shared */
+	const struct reyes_param_value *params;
+	uint32_t nparams;
+	float shader_to_world[16];      /* "shader" space: the current transform at the request */
+};
+
+struct reyes_light {
+	struct reyes_shader shader;
+	const char *handle;             /* "1", "key", ... */
+	bool default_on;                /* lights are on where declared (Illuminate changes it) */
+	uint32_t index;                 /* position in scene->lights */
+};
+
+/** An attribute bundle: shared by all primitives declared while it was current. */
+struct reyes_attrs {
+	float Cs[3], Os[3];                   /* Color, Opacity */
+	const struct reyes_shader *surface;   /* NULL: the default surface */
+	const struct reyes_shader *displacement;
+	const uint32_t *lights;               /* indices of the lights that are on */
+	uint32_t nlights;
+	int sides;                            /* 1 or 2 */
+	bool flip_normals;                    /* Orientation / ReverseOrientation vs handedness */
+	float shading_rate;                   /* area in pixels per micropolygon, default 1 */
+	bool smooth;                          /* ShadingInterpolation "smooth" (default constant) */
+	const char *identifier;               /* Attribute "identifier" "name" */
+	float displacement_bound;             /* Attribute "displacementbound" "sphere" */
+	const char *displacement_bound_space; /* its coordinate system, default "object" */
+	bool casts_shadows;                   /* Attribute "visibility" "transmission" (default on) */
+	bool moving;                          /* object_to_world differs at shutter close */
+	float object_to_world[2][16];         /* at shutter open and close */
+};
+
+enum reyes_class { REYES_CONSTANT, REYES_UNIFORM, REYES_VARYING, REYES_VERTEX, REYES_FACEVARYING };
+
+/** A primitive variable: P, N, Cs, Os, s, t, st, or user data for shader parameters. */
+struct reyes_primvar {
+	const char *name;
+	enum reyes_class cls;
+	int type;                             /* enum sl_basetype */
+	uint32_t arraylen;                    /* 0: not an array */
+	uint32_t count;                       /* number of items (per class: 1, faces, corners...) */
+	const float *values;                  /* count * ncomp * max(1, arraylen) */
+	const float *values1;                 /* at shutter close (deforming motion), or NULL */
+};
+
+enum reyes_prim_kind {
+	REYES_SPHERE,       /* q: radius zmin zmax thetamax */
+	REYES_CYLINDER,     /* q: radius zmin zmax thetamax */
+	REYES_CONE,         /* q: height radius thetamax */
+	REYES_DISK,         /* q: height radius thetamax */
+	REYES_HYPERBOLOID,  /* q: x1 y1 z1 x2 y2 z2 thetamax */
+	REYES_PARABOLOID,   /* q: rmax zmin zmax thetamax */
+	REYES_TORUS,        /* q: majorradius minorradius phimin phimax thetamax */
+	REYES_POLYGONS,     /* Polygon, GeneralPolygon, PointsPolygons, PointsGeneralPolygons */
+	REYES_PATCHES,      /* Patch and PatchMesh, bilinear or bicubic */
+};
+
+struct reyes_prim {
+	enum reyes_prim_kind kind;
+	const struct reyes_attrs *attrs;
+	uint32_t id;                          /* order of declaration */
+	float q[8];                           /* quadric parameters (angles in degrees, as in RIB) */
+
+	/* REYES_POLYGONS: faces made of loops (the first is the outline, others holes). */
+	uint32_t nfaces;
+	const uint32_t *nloops;               /* per face (1 for simple polygons) */
+	const uint32_t *nverts;               /* per loop */
+	const uint32_t *verts;                /* vertex indices, loop after loop */
+
+	/* REYES_PATCHES: an nu x nv mesh of control points (one patch: 2x2 or 4x4). */
+	bool bicubic;
+	uint32_t nu, nv;
+	bool uperiodic, vperiodic;
+	float ubasis[16], vbasis[16];         /* bicubic bases (rows: coefficients of t^3..1) */
+	uint32_t ustep, vstep;
+
+	uint32_t npoints;                     /* vertex positions ("P" count) */
+	const struct reyes_primvar *vars;     /* "P" is always present (vertex point) */
+	uint32_t nvars;
+};
+
+/** A finished scene: what one frame renders. */
+struct reyes_scene {
+	struct rl_arena *arena;
+	struct reyes_options opts;
+	struct reyes_light *lights;
+	uint32_t nlights;
+	struct reyes_prim *prims;
+	uint32_t nprims;
+	/* Named coordinate systems (CoordinateSystem): name -> that space to world. */
+	const char *const *space_names;
+	const float (*space_to_world)[16];
+	uint32_t nspaces;
+};
+
+/** The variable named @name of @p, or NULL. */
+const struct reyes_primvar *reyes_prim_var(const struct reyes_prim *p, const char *name);
+
+#endif

@@ -1,0 +1,77 @@
+/*
+ * Images, textures and shadow maps, all OpenEXR files through the OpenEXR
+ * C API (readable with exrheader, oiiotool...).
+ *
+ *  - Rendered images: scanline RGBA (+ Z, + AOVs), half or float, with
+ *    worldToCamera / worldToNDC matrices as header attributes. Written to a
+ *    temporary file and renamed, so a crash leaves any old file intact.
+ *  - MakeTexture: a tiled, mip-mapped OpenEXR (levels by box-filtered
+ *    halving), with the wrap modes as attributes.
+ *  - MakeShadow: a depth map ("Z", float) with the light's worldToCamera and
+ *    worldToNDC matrices, from a zfile/shadow display's output.
+ *  - The texture system: open files once (cached by name, searched along the
+ *    texture path), then filtered lookups for texture(), environment() and
+ *    shadow() (percentage-closer filtering with samples, blur, bias, width).
+ */
+#ifndef REYES_TEXTURE_H
+#define REYES_TEXTURE_H
+
+#include "exec.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+
+/** A float image, channels interleaved: pixel (x, y) channel c at data[(y*w + x)*nch + c]. */
+struct reyes_image {
+	uint32_t width, height, nchannels;
+	const char **channel_names;      /* e.g. "R", "G", "B", "A", "Z", "diffuse.R" */
+	float *data;
+	bool has_matrices;
+	float world_to_camera[16];       /* row-vector convention */
+	float world_to_ndc[16];
+};
+
+/** Allocate width*height*nch zeroed floats and names (copied). False when too big. */
+bool reyes_image_init(struct reyes_image *im, uint32_t w, uint32_t h, uint32_t nch,
+		      const char *const *names);
+void reyes_image_finish(struct reyes_image *im);
+
+/**
+ * Write @im as a scanline OpenEXR (ZIP compression; @half stores colour
+ * channels as half, "Z" always float). Atomic: temporary file + rename.
+ * Errors go to @diag (NULL: stderr) as "PATH: error: MESSAGE".
+ */
+bool reyes_image_write_exr(const char *path, const struct reyes_image *im, bool half,
+			   FILE *diag);
+
+/** Read any scanline or tiled OpenEXR (level 0) as float. */
+bool reyes_image_read_exr(const char *path, struct reyes_image *im, FILE *diag);
+
+/** MakeTexture: @swrap/@twrap "periodic", "clamp" or "black". */
+bool reyes_make_texture(const char *in, const char *out, const char *swrap, const char *twrap,
+			const char *filter, float swidth, float twidth, FILE *diag);
+
+/** MakeShadow: @in is a depth image with matrices (a zfile or shadow display's output). */
+bool reyes_make_shadow(const char *in, const char *out, FILE *diag);
+
+struct reyes_texsys;
+
+/**
+ * A cache of opened textures and shadow maps. @searchpath: colon-separated
+ * directories tried for relative names (NULL: the current directory only).
+ * @camera_to_world: the renderer's "current" (camera) space to world, so
+ * shadow() can take points from current space into the light's.
+ */
+struct reyes_texsys *reyes_texsys_create(const char *searchpath,
+					 const float camera_to_world[16], FILE *diag);
+void reyes_texsys_destroy(struct reyes_texsys *ts);
+
+/* Lookups with the semantics of struct sl_host's callbacks (exec.h). Thread-safe. */
+bool reyes_tex_texture(struct reyes_texsys *ts, const struct sl_tex_lookup *q);
+bool reyes_tex_environment(struct reyes_texsys *ts, const struct sl_tex_lookup *q);
+bool reyes_tex_shadow(struct reyes_texsys *ts, const struct sl_tex_lookup *q);
+bool reyes_tex_info(struct reyes_texsys *ts, const char *name, const char *query, int type,
+		    int arraylen, float *out, const char **sout);
+
+#endif
