@@ -17,4 +17,7 @@ enum {
 /** `relight compile`: check an RSL shader; optionally print its AST, IR or a report. */
 int cmd_compile(int argc, char **argv);
 
+/** `relight render`: render a RIB scene's frames to OpenEXR with the REYES renderer. */
+int cmd_render(int argc, char **argv);
+
 #endif

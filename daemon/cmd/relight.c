@@ -18,6 +18,7 @@ struct command {
 
 static const struct command commands[] = {
 	{ "compile", cmd_compile, "Check an RSL shader; print its AST, IR or a JSON report" },
+	{ "render", cmd_render, "Render a RIB scene to OpenEXR with the reference renderer" },
 };
 
 static const size_t ncommands = sizeof(commands) / sizeof(commands[0]);

@@ -1,2 +1,1042 @@
-/* being written */
-#include "scene.h"
+/*
+ * The stochastic hider: point samples, per-sample depth-sorted hit lists,
+ * front-to-back compositing and the pixel filter.
+ *
+ * Samples. Sample (gx, gy) of the image is stratum i = gx mod xsamples,
+ * j = gy mod ysamples of pixel (gx / xsamples, gy / ysamples). Its position
+ * is jittered inside the stratum and its time inside one of the pixel's
+ * xsamples * ysamples time strata, chosen by a per-pixel permutation so that
+ * time does not follow position. Everything comes from a hash of (gx, gy,
+ * seed) and of (pixel, seed), never from the bucket, so the filter margin
+ * that neighbouring buckets both sample is sampled identically. Positions
+ * lie strictly inside their pixel (never on an integer coordinate).
+ *
+ * Micropolygons. Each quad (i, j), (i+1, j), (i+1, j+1), (i, j+1) is cut
+ * along the diagonal (i, j)-(i+1, j+1) into two triangles. A sample is inside
+ * a triangle when it is strictly inside every edge; a sample exactly on an
+ * edge belongs to the triangle it would fall into if it were moved an
+ * infinitesimal amount right, then down (the top-left rule). Edge functions
+ * are evaluated from the edge's lexicographically smaller endpoint, so the
+ * two triangles sharing an edge compute exactly opposite values: a sample on
+ * a shared edge or vertex counts once, and there are no cracks.
+ *
+ * Facing. RenderMan's camera space is left-handed (x right, y up, z into the
+ * screen) and raster space has y down. For Ng = dPdu x dPdv (u along i, v
+ * along j), the signed raster area of a micropolygon,
+ * cross(P(i+1,j) - P(i,j), P(i,j+1) - P(i,j)) summed over its two triangles
+ * with raster y pointing down, is -(Ng . P) / z^3 times positive scales under
+ * perspective (-Ng.z under orthographic). So a micropolygon whose Ng points
+ * toward the camera (Ng . P < 0) has a positive raster area: positive area is
+ * front-facing, and flip reverses that.
+ *
+ * Hits. A sample keeps the hits nearer than the depth at which it became
+ * opaque (accumulated opacity >= opacity_threshold in every channel), sorted
+ * front to back in a singly linked list whose nodes come from a per-bucket
+ * pool with a free list. A hit that becomes the opaque point frees the nodes
+ * behind it, and hits behind the opaque point are rejected at once.
+ *
+ * Resolving. Each sample composites its hits front to back per channel,
+ * C += T Ci and T *= 1 - Oi (Ci is premultiplied); a matte hit adds neither
+ * colour nor alpha but still attenuates T. Alpha is the mean over the three
+ * channels of the non-matte opacity accumulated (1 - T without matte). AOV
+ * planes composite like colour, with the mean of the three channels' T. A
+ * sample's depth is where it became opaque (1e30 if it never did); for the
+ * midpoint depthfilter it is halfway between the two nearest hits that are
+ * opaque by themselves (1e30 with fewer than two: the midpoint between a
+ * surface and nothing is at infinity). A pixel's depth combines its own
+ * samples: min, max, the average over samples that have a depth, or for
+ * midpoint their minimum. Colour, alpha and AOVs are sum(w s) / sum(w) over
+ * the samples whose offset from the pixel centre lies in [-w/2, w/2) on both
+ * axes, with weights from tables of reyes_filter_eval; the margin a bucket
+ * samples is the pixels that can hold such samples, ceil(w/2 + 1/2) - 1 on
+ * each side.
+ */
+#include "hider.h"
+
+#include "arena.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define NIL 0xffffffffu
+#define NO_DEPTH 1e30f
+#define TAB_N 1024
+#define MAX_SAMPLES_AXIS 256u
+#define MAX_FILTER_WIDTH 64.0f
+#define MAX_AOV 4096u
+
+struct sample {
+	float x, y, t;        /* raster position, time in [0, 1) */
+	float zopq;           /* depth at which the sample became opaque, INFINITY if not */
+	uint32_t head;        /* nearest hit, NIL when none */
+	float zo[2];          /* midpoint depthfilter: the two nearest opaque hits */
+};
+
+struct hit {
+	float z;
+	uint32_t next;
+	float c[3], o[3];
+	bool matte;
+};
+
+/* An edge function from the canonical (smaller) endpoint: cross(d, p - a). */
+struct edge {
+	double ax, ay, dx, dy;
+	double sign;          /* +1 when the edge as defined starts at (ax, ay) */
+};
+
+/*
+ * One triangle: for the edge opposite each vertex a, b, c, the edge function
+ * made positive inside, v = A (py - ay) - B (px - ax): the canonical edge's
+ * (dx, dy) times +-1, which is exact, so triangles sharing an edge get
+ * exactly opposite values.
+ */
+struct tri {
+	double ax[3], ay[3], A[3], B[3];
+	bool own[3];          /* samples exactly on the edge are inside */
+	uint8_t v[3];         /* quad vertices a, b, c */
+	bool ok;
+};
+
+struct quad {
+	struct edge e[5];     /* around the quad, then the diagonal v0-v2 */
+	struct tri t[2];
+	float x0, y0, x1, y1; /* bound */
+};
+
+struct reyes_hider {
+	struct reyes_hider_opts o;
+	uint32_t nps;         /* samples per pixel */
+	uint32_t mx, my;      /* filter margin in pixels */
+	uint32_t *perm;       /* scratch for the time permutation */
+	float hw, hh;         /* half widths */
+	bool radial;          /* the radial Catmull-Rom; else separable */
+	float tabx[TAB_N + 2], taby[TAB_N + 2], tabr[TAB_N + 2];
+	float scx, scy, scr, r2max;
+
+	/* the current bucket */
+	bool active;
+	uint32_t px0, py0, px1, py1;
+	uint32_t rx0, ry0, rx1, ry1;  /* sampled pixels */
+	uint32_t gx0, gy0, sw, sh;    /* sample grid of the region */
+	struct sample *samp;
+	size_t samp_cap;
+	struct hit *hits;
+	float *hit_aov;
+	uint32_t nhits, hits_cap, freelist;
+	uint64_t inserted;
+
+	/* reyes_hider_end scratch */
+	float *scol, *saov, *sz;
+	float *swx, *swy;     /* separable filter factors per sample */
+	size_t scratch_cap;
+	double *acc_aov;
+};
+
+/* ---- hashing ---- */
+
+/* A 64-bit finaliser: a bijection with full avalanche. */
+static uint64_t mix64(uint64_t h)
+{
+	h ^= h >> 30;
+	h *= 0xbf58476d1ce4e5b9u;
+	h ^= h >> 27;
+	h *= 0x94d049bb133111ebu;
+	h ^= h >> 31;
+	return h;
+}
+
+static uint64_t key2(uint32_t a, uint32_t b, uint64_t salt)
+{
+	return mix64(((uint64_t)a << 32 | b) ^ salt);
+}
+
+/* ---- creation ---- */
+
+static bool bad_opt(const char *what)
+{
+	fprintf(stderr, "relight: error: hider: %s\n", what);
+	return false;
+}
+
+static bool check_opts(const struct reyes_hider_opts *o)
+{
+	if (o->xres == 0 || o->yres == 0)
+		return bad_opt("image size is zero");
+	if (o->xsamples == 0 || o->ysamples == 0 || o->xsamples > MAX_SAMPLES_AXIS ||
+	    o->ysamples > MAX_SAMPLES_AXIS)
+		return bad_opt("pixel samples out of range (1 to 256 per axis)");
+	if ((uint64_t)o->xres * o->xsamples >= (1u << 30) ||
+	    (uint64_t)o->yres * o->ysamples >= (1u << 30))
+		return bad_opt("image too large for its pixel samples");
+	if ((unsigned)o->filter > REYES_FILTER_SEP_GAUSSIAN)
+		return bad_opt("unknown pixel filter");
+	for (int i = 0; i < 2; i++) {
+		if (!(o->filter_width[i] > 0.0f && o->filter_width[i] <= MAX_FILTER_WIDTH))
+			return bad_opt("filter width out of range (0 to 64 pixels)");
+	}
+	if (!(o->opacity_threshold > 0.0f && o->opacity_threshold <= 1.0f))
+		return bad_opt("opacity threshold out of range (0 to 1]");
+	if ((unsigned)o->depthfilter > REYES_DEPTH_MIDPOINT)
+		return bad_opt("unknown depth filter");
+	if (o->naov > MAX_AOV)
+		return bad_opt("too many output channels");
+	return true;
+}
+
+/*
+ * Weights come from tables of reyes_filter_eval: per axis for the separable
+ * filters (box, triangle, the Gaussians and sinc, whose value is
+ * f(dx, 0) f(0, dy) / f(0, 0), and the constant divides out), and over r^2
+ * for the radial Catmull-Rom.
+ */
+static void build_tables(struct reyes_hider *h)
+{
+	const struct reyes_hider_opts *o = &h->o;
+	float xw = o->filter_width[0], yw = o->filter_width[1];
+
+	h->hw = 0.5f * xw;
+	h->hh = 0.5f * yw;
+	h->radial = o->filter == REYES_FILTER_CATMULLROM;
+	h->scx = (float)TAB_N / h->hw;
+	h->scy = (float)TAB_N / h->hh;
+	for (int i = 0; i <= TAB_N; i++) {
+		float fx = h->hw * (float)i / (float)TAB_N;
+		float fy = h->hh * (float)i / (float)TAB_N;
+		h->tabx[i] = reyes_filter_eval(o->filter, fx < h->hw ? fx : h->hw, 0.0f, xw, yw);
+		h->taby[i] = reyes_filter_eval(o->filter, 0.0f, fy < h->hh ? fy : h->hh, xw, yw);
+	}
+	h->tabx[TAB_N + 1] = h->tabx[TAB_N];
+	h->taby[TAB_N + 1] = h->taby[TAB_N];
+
+	h->r2max = h->hw * h->hw + h->hh * h->hh;
+	if (h->r2max > 4.0f)
+		h->r2max = 4.0f; /* the cubic is 0 beyond r = 2 */
+	h->scr = (float)TAB_N / h->r2max;
+	for (int i = 0; i <= TAB_N; i++) {
+		float r = sqrtf(h->r2max * (float)i / (float)TAB_N);
+		h->tabr[i] = reyes_filter_eval(REYES_FILTER_CATMULLROM, r, 0.0f, 8.0f, 8.0f);
+	}
+	h->tabr[TAB_N + 1] = h->tabr[TAB_N];
+
+	/* Pixels whose samples (strictly inside the pixel) can lie in
+	 * [-hw, hw) of a neighbour's centre: m < hw + 1/2. */
+	h->mx = (uint32_t)(ceil((double)h->hw + 0.5) - 1.0);
+	h->my = (uint32_t)(ceil((double)h->hh + 0.5) - 1.0);
+}
+
+struct reyes_hider *reyes_hider_create(const struct reyes_hider_opts *opts)
+{
+	if (!opts || !check_opts(opts))
+		return NULL;
+	struct reyes_hider *h = rl_xcalloc(1, sizeof(*h));
+	h->o = *opts;
+	h->nps = opts->xsamples * opts->ysamples;
+	h->perm = rl_xmalloc(h->nps * sizeof(*h->perm));
+	h->acc_aov = rl_xcalloc(opts->naov ? opts->naov : 1, sizeof(*h->acc_aov));
+	h->freelist = NIL;
+	build_tables(h);
+	return h;
+}
+
+void reyes_hider_destroy(struct reyes_hider *h)
+{
+	if (!h)
+		return;
+	free(h->perm);
+	free(h->samp);
+	free(h->hits);
+	free(h->hit_aov);
+	free(h->scol);
+	free(h->saov);
+	free(h->sz);
+	free(h->swx);
+	free(h->swy);
+	free(h->acc_aov);
+	free(h);
+}
+
+/* ---- buckets ---- */
+
+/* A float strictly inside (lo, lo + 1) for integer @lo. */
+static float inside_pixel(double v, uint32_t lo)
+{
+	float f = (float)v, a = (float)lo, b = (float)(lo + 1);
+	if (!(f > a))
+		f = nextafterf(a, b);
+	if (!(f < b))
+		f = nextafterf(b, a);
+	return f;
+}
+
+static void fill_samples(struct reyes_hider *h)
+{
+	const struct reyes_hider_opts *o = &h->o;
+	uint32_t xs = o->xsamples, ys = o->ysamples, n = h->nps;
+	uint64_t pixel_salt = mix64(o->seed + 0x9e3779b97f4a7c15u);
+	uint64_t sample_salt = mix64(pixel_salt ^ 0x6a09e667f3bcc909u);
+	double ixs = 1.0 / xs, iys = 1.0 / ys, in = 1.0 / n;
+
+	for (uint32_t py = h->ry0; py < h->ry1; py++) {
+		for (uint32_t px = h->rx0; px < h->rx1; px++) {
+			/* The pixel's time strata, shuffled (Fisher-Yates). */
+			uint64_t st = key2(px, py, pixel_salt);
+			for (uint32_t k = 0; k < n; k++)
+				h->perm[k] = k;
+			for (uint32_t k = n; k > 1; k--) {
+				st = mix64(st + 0x9e3779b97f4a7c15u);
+				uint32_t r = (uint32_t)(((st >> 32) * k) >> 32);
+				uint32_t tmp = h->perm[k - 1];
+				h->perm[k - 1] = h->perm[r];
+				h->perm[r] = tmp;
+			}
+			for (uint32_t j = 0; j < ys; j++) {
+				uint32_t gy = py * ys + j;
+				struct sample *row = h->samp + (size_t)(gy - h->gy0) * h->sw;
+				for (uint32_t i = 0; i < xs; i++) {
+					uint32_t gx = px * xs + i;
+					struct sample *s = row + (gx - h->gx0);
+					double u = 0.5, v = 0.5, w = 0.5;
+					if (o->jitter) {
+						/* 21 + 21 + 22 bits of one hash: x, y, time. */
+						uint64_t k = key2(gx, gy, sample_salt);
+						u = ((double)(k >> 43) + 0.5) * (1.0 / 2097152.0);
+						v = ((double)((k >> 22) & 0x1fffff) + 0.5) *
+						    (1.0 / 2097152.0);
+						w = ((double)(k & 0x3fffff) + 0.5) *
+						    (1.0 / 4194304.0);
+					}
+					s->x = inside_pixel(((double)gx + u) * ixs, px);
+					s->y = inside_pixel(((double)gy + v) * iys, py);
+					float t = (float)(((double)h->perm[j * xs + i] + w) * in);
+					s->t = t < 1.0f ? t : nextafterf(1.0f, 0.0f);
+					s->zopq = INFINITY;
+					s->head = NIL;
+					s->zo[0] = s->zo[1] = INFINITY;
+				}
+			}
+		}
+	}
+}
+
+void reyes_hider_begin(struct reyes_hider *h, uint32_t px0, uint32_t py0, uint32_t px1,
+		       uint32_t py1)
+{
+	if (!h)
+		return;
+	const struct reyes_hider_opts *o = &h->o;
+	h->active = false;
+	h->nhits = 0;
+	h->freelist = NIL;
+	h->inserted = 0;
+	px1 = px1 < o->xres ? px1 : o->xres;
+	py1 = py1 < o->yres ? py1 : o->yres;
+	if (px0 >= px1 || py0 >= py1) {
+		h->px0 = h->px1 = h->py0 = h->py1 = 0;
+		return;
+	}
+	h->px0 = px0;
+	h->py0 = py0;
+	h->px1 = px1;
+	h->py1 = py1;
+	h->rx0 = px0 > h->mx ? px0 - h->mx : 0;
+	h->ry0 = py0 > h->my ? py0 - h->my : 0;
+	h->rx1 = (uint64_t)px1 + h->mx < o->xres ? px1 + h->mx : o->xres;
+	h->ry1 = (uint64_t)py1 + h->my < o->yres ? py1 + h->my : o->yres;
+	h->gx0 = h->rx0 * o->xsamples;
+	h->gy0 = h->ry0 * o->ysamples;
+	h->sw = (h->rx1 - h->rx0) * o->xsamples;
+	h->sh = (h->ry1 - h->ry0) * o->ysamples;
+
+	size_t n = (size_t)h->sw * h->sh;
+	if (n > h->samp_cap) {
+		free(h->samp);
+		h->samp = rl_xmalloc(n * sizeof(*h->samp));
+		h->samp_cap = n;
+	}
+	fill_samples(h);
+	h->active = true;
+}
+
+void reyes_hider_region(const struct reyes_hider *h, float *x0, float *y0, float *x1,
+			float *y1)
+{
+	bool on = h && h->active;
+	if (x0)
+		*x0 = on ? (float)h->rx0 : 0.0f;
+	if (y0)
+		*y0 = on ? (float)h->ry0 : 0.0f;
+	if (x1)
+		*x1 = on ? (float)h->rx1 : 0.0f;
+	if (y1)
+		*y1 = on ? (float)h->ry1 : 0.0f;
+}
+
+/* ---- hit lists ---- */
+
+static uint32_t alloc_hit(struct reyes_hider *h)
+{
+	if (h->freelist != NIL) {
+		uint32_t i = h->freelist;
+		h->freelist = h->hits[i].next;
+		return i;
+	}
+	if (h->nhits == h->hits_cap) {
+		if (h->hits_cap >= (NIL >> 1))
+			return NIL;
+		uint32_t cap = h->hits_cap ? h->hits_cap * 2 : 4096;
+		h->hits = rl_xrealloc(h->hits, (size_t)cap * sizeof(*h->hits));
+		if (h->o.naov)
+			h->hit_aov = rl_xrealloc(h->hit_aov,
+						 (size_t)cap * h->o.naov * sizeof(*h->hit_aov));
+		h->hits_cap = cap;
+	}
+	return h->nhits++;
+}
+
+static void free_chain(struct reyes_hider *h, uint32_t i)
+{
+	while (i != NIL) {
+		uint32_t next = h->hits[i].next;
+		h->hits[i].next = h->freelist;
+		h->freelist = i;
+		i = next;
+	}
+}
+
+static bool opaque3(const float T[3], float thr)
+{
+	float lim = 1.0f - thr;
+	return T[0] <= lim && T[1] <= lim && T[2] <= lim;
+}
+
+static float clamp01(float v)
+{
+	return v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f; /* NaN -> 0 */
+}
+
+/* What a micropolygon gives a sample: its grid and the quad's vertex indices. */
+struct mp_src {
+	const struct reyes_hider_grid *g;
+	size_t n;             /* points in the grid: the stride between planes */
+	uint32_t q[4];
+};
+
+/* A plane's value at the hit: weighted over the quad's vertices, or vertex (i, j)'s. */
+static inline float plane_value(const float *plane, const struct mp_src *m, const float *w)
+{
+	if (!w)
+		return plane[m->q[0]];
+	return w[0] * plane[m->q[0]] + w[1] * plane[m->q[1]] + w[2] * plane[m->q[2]] +
+	       w[3] * plane[m->q[3]];
+}
+
+static inline void hit_opacity(const struct mp_src *m, const float *w, float o[3])
+{
+	const float *Oi = m->g->Oi;
+	if (!Oi) {
+		o[0] = o[1] = o[2] = 1.0f;
+		return;
+	}
+	o[0] = clamp01(plane_value(Oi, m, w));
+	o[1] = clamp01(plane_value(Oi + m->n, m, w));
+	o[2] = clamp01(plane_value(Oi + 2 * m->n, m, w));
+}
+
+static void sample_hit(struct reyes_hider *h, struct sample *s, float z, const struct mp_src *m,
+		       const float *w)
+{
+	const struct reyes_hider_grid *g = m->g;
+	float thr = h->o.opacity_threshold;
+	float o[3];
+
+	if (!(z > 0.0f))
+		return;
+	if (h->o.depthfilter == REYES_DEPTH_MIDPOINT) {
+		hit_opacity(m, w, o);
+		if (o[0] >= thr && o[1] >= thr && o[2] >= thr) {
+			if (z < s->zo[0]) {
+				s->zo[1] = s->zo[0];
+				s->zo[0] = z;
+			} else if (z < s->zo[1]) {
+				s->zo[1] = z;
+			}
+		}
+		if (!(z < s->zopq))
+			return;
+	} else {
+		if (!(z < s->zopq))
+			return;
+		hit_opacity(m, w, o);
+	}
+
+	uint32_t ni = alloc_hit(h);
+	if (ni == NIL)
+		return;
+	struct hit *nh = &h->hits[ni];
+	nh->z = z;
+	nh->matte = g->matte;
+	for (int c = 0; c < 3; c++) {
+		nh->o[c] = o[c];
+		nh->c[c] = g->Ci ? plane_value(g->Ci + c * m->n, m, w) : 0.0f;
+	}
+	if (h->o.naov) {
+		float *a = h->hit_aov + (size_t)ni * h->o.naov;
+		for (uint32_t k = 0; k < h->o.naov; k++)
+			a[k] = g->aov && g->aov[k] ? plane_value(g->aov[k], m, w) : 0.0f;
+	}
+	h->inserted++;
+
+	/* Insert after the hits at or in front of z, tracking transmittance. */
+	float T[3] = { 1.0f, 1.0f, 1.0f };
+	uint32_t prev = NIL, cur = s->head;
+	while (cur != NIL && h->hits[cur].z <= z) {
+		const struct hit *c = &h->hits[cur];
+		for (int k = 0; k < 3; k++)
+			T[k] *= 1.0f - c->o[k];
+		prev = cur;
+		cur = c->next;
+	}
+	nh = &h->hits[ni];
+	nh->next = cur;
+	if (prev == NIL)
+		s->head = ni;
+	else
+		h->hits[prev].next = ni;
+
+	/* Find where the sample now becomes opaque and drop what is behind. */
+	for (uint32_t i = ni; i != NIL; i = h->hits[i].next) {
+		struct hit *c = &h->hits[i];
+		for (int k = 0; k < 3; k++)
+			T[k] *= 1.0f - c->o[k];
+		if (opaque3(T, thr)) {
+			s->zopq = c->z;
+			free_chain(h, c->next);
+			c->next = NIL;
+			break;
+		}
+	}
+}
+
+/* ---- micropolygons ---- */
+
+static void edge_init(struct edge *e, float x0, float y0, float x1, float y1)
+{
+	if (x0 < x1 || (x0 == x1 && y0 <= y1)) {
+		e->ax = x0;
+		e->ay = y0;
+		e->dx = (double)x1 - x0;
+		e->dy = (double)y1 - y0;
+		e->sign = 1.0;
+	} else {
+		e->ax = x1;
+		e->ay = y1;
+		e->dx = (double)x0 - x1;
+		e->dy = (double)y0 - y1;
+		e->sign = -1.0;
+	}
+}
+
+static double edge_eval(const struct edge *e, double px, double py)
+{
+	return e->dx * (py - e->ay) - e->dy * (px - e->ax);
+}
+
+/*
+ * Set up triangle @t from quad edges used as a->b (@ab), b->c, c->a with the
+ * direction multipliers @sab... (+1: as the edge is defined). The triangle's
+ * area sign comes from the a->b edge function at c. Returns the signed area
+ * (twice it), 0 when degenerate.
+ */
+static double tri_init(struct tri *t, const struct edge *e, int ab, double sab, int bc, double sbc,
+		       int ca, double sca, double cx, double cy, uint8_t va, uint8_t vb, uint8_t vc)
+{
+	double area = sab * e[ab].sign * edge_eval(&e[ab], cx, cy);
+	t->ok = area != 0.0 && isfinite(area);
+	if (!t->ok)
+		return 0.0;
+	double o = area > 0.0 ? 1.0 : -1.0;
+	/* Edge opposite a is b->c, opposite b is c->a, opposite c is a->b. */
+	const int ei[3] = { bc, ca, ab };
+	const double sd[3] = { sbc, sca, sab };
+	for (int i = 0; i < 3; i++) {
+		const struct edge *ed = &e[ei[i]];
+		double k = o * sd[i] * ed->sign;
+		t->ax[i] = ed->ax;
+		t->ay[i] = ed->ay;
+		t->A[i] = k * ed->dx;
+		t->B[i] = k * ed->dy;
+		/* Direction k * (dx, dy); moved right then down, the sample lands inside. */
+		t->own[i] = t->B[i] < 0.0 || (t->B[i] == 0.0 && t->A[i] > 0.0);
+	}
+	t->v[0] = va;
+	t->v[1] = vb;
+	t->v[2] = vc;
+	return area;
+}
+
+static float min4(const float v[4])
+{
+	float a = v[0] < v[1] ? v[0] : v[1], b = v[2] < v[3] ? v[2] : v[3];
+	return a < b ? a : b;
+}
+
+static float max4(const float v[4])
+{
+	float a = v[0] > v[1] ? v[0] : v[1], b = v[2] > v[3] ? v[2] : v[3];
+	return a > b ? a : b;
+}
+
+/*
+ * Build the quad's edges and triangles from raster vertices v0 = (i, j),
+ * v1 = (i+1, j), v2 = (i+1, j+1), v3 = (i, j+1). False when it is culled or
+ * has no area.
+ */
+static bool quad_init(struct quad *q, const float vx[4], const float vy[4], bool cull, bool flip)
+{
+	struct edge *e = q->e;
+	edge_init(&e[0], vx[0], vy[0], vx[1], vy[1]);
+	edge_init(&e[1], vx[1], vy[1], vx[2], vy[2]);
+	edge_init(&e[2], vx[2], vy[2], vx[3], vy[3]);
+	edge_init(&e[3], vx[3], vy[3], vx[0], vy[0]);
+	edge_init(&e[4], vx[0], vy[0], vx[2], vy[2]);
+	/* (v0, v1, v2): v0->v1, v1->v2, v2->v0 (the diagonal reversed). */
+	double a1 = tri_init(&q->t[0], e, 0, 1.0, 1, 1.0, 4, -1.0, vx[2], vy[2], 0, 1, 2);
+	/* (v0, v2, v3): v0->v2, v2->v3, v3->v0. */
+	double a2 = tri_init(&q->t[1], e, 4, 1.0, 2, 1.0, 3, 1.0, vx[3], vy[3], 0, 2, 3);
+	double area = a1 + a2;
+	if (!(area != 0.0))
+		return false;
+	if (cull) {
+		bool front = area > 0.0;
+		if (front == flip)
+			return false;
+	}
+	/* NaN in the bound lets samples through to the edge tests, which reject them. */
+	q->x0 = min4(vx);
+	q->x1 = max4(vx);
+	q->y0 = min4(vy);
+	q->y1 = max4(vy);
+	return q->t[0].ok || q->t[1].ok;
+}
+
+/*
+ * Which triangle of @q holds (px, py): its barycentric weights go to w[4]
+ * (per quad vertex) unless @w is NULL, and the interpolated depth of @vz to
+ * *z. Returns false when the point is outside both.
+ */
+static bool quad_test(const struct quad *q, float fx, float fy, const float vz[4], float w[4],
+		      float *z)
+{
+	if (fx < q->x0 || fx > q->x1 || fy < q->y0 || fy > q->y1)
+		return false;
+	double px = fx, py = fy;
+	for (int ti = 0; ti < 2; ti++) {
+		const struct tri *t = &q->t[ti];
+		if (!t->ok)
+			continue;
+		double v[3];
+		bool in = true;
+		for (int i = 0; i < 3; i++) {
+			v[i] = t->A[i] * (py - t->ay[i]) - t->B[i] * (px - t->ax[i]);
+			in &= v[i] > 0.0 || (v[i] == 0.0 && t->own[i]);
+		}
+		if (!in)
+			continue;
+		double sum = v[0] + v[1] + v[2];
+		if (!(sum > 0.0))
+			continue;
+		double inv = 1.0 / sum;
+		*z = (float)((v[0] * vz[t->v[0]] + v[1] * vz[t->v[1]] + v[2] * vz[t->v[2]]) * inv);
+		if (w) {
+			w[0] = w[1] = w[2] = w[3] = 0.0f;
+			for (int i = 0; i < 3; i++)
+				w[t->v[i]] = (float)(v[i] * inv);
+		}
+		return true;
+	}
+	return false;
+}
+
+static float lerpf(float a, float b, float t)
+{
+	return a + (b - a) * t;
+}
+
+/* Sample index range [lo, hi] of raster interval [a, b] at @ns samples per pixel. */
+static bool sample_range(double a, double b, uint32_t ns, uint32_t g0, uint32_t g1, uint32_t *lo,
+			 uint32_t *hi)
+{
+	double fa = floor(a * ns - 1e-4), fb = floor(b * ns + 1e-4);
+	if (!(fb >= (double)g0 && fa < (double)g1))
+		return false;
+	*lo = fa <= (double)g0 ? g0 : (uint32_t)fa;
+	*hi = fb >= (double)(g1 - 1) ? g1 - 1 : (uint32_t)fb;
+	return *lo <= *hi;
+}
+
+void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
+{
+	if (!h || !h->active || !g || g->nu < 2 || g->nv < 2 || !g->x[0] || !g->y[0] ||
+	    !g->z[0])
+		return;
+	if ((uint64_t)g->nu * g->nv > 0xffffffffu)
+		return;
+	const struct reyes_hider_opts *o = &h->o;
+	const float *X0 = g->x[0], *Y0 = g->y[0], *Z0 = g->z[0];
+	const float *X1 = g->x[1] ? g->x[1] : X0;
+	const float *Y1 = g->y[1] ? g->y[1] : Y0;
+	const float *Z1 = g->z[1] ? g->z[1] : Z0;
+	bool grid_moves = X1 != X0 || Y1 != Y0 || Z1 != Z0;
+	double rx0 = h->rx0, rx1 = h->rx1, ry0 = h->ry0, ry1 = h->ry1;
+	uint32_t gx1 = h->gx0 + h->sw, gy1 = h->gy0 + h->sh;
+	struct mp_src m = { .g = g, .n = (size_t)g->nu * g->nv };
+	struct quad q;
+
+	for (uint32_t j = 0; j + 1 < g->nv; j++) {
+		for (uint32_t i = 0; i + 1 < g->nu; i++) {
+			uint32_t base = j * g->nu + i;
+			m.q[0] = base;
+			m.q[1] = base + 1;
+			m.q[2] = base + g->nu + 1;
+			m.q[3] = base + g->nu;
+			float vx[4], vy[4], vz[4];
+			bool moves = false;
+			float x1[4], y1[4], z1[4];
+			for (int k = 0; k < 4; k++) {
+				uint32_t p = m.q[k];
+				vx[k] = X0[p];
+				vy[k] = Y0[p];
+				vz[k] = Z0[p];
+				if (grid_moves) {
+					x1[k] = X1[p];
+					y1[k] = Y1[p];
+					z1[k] = Z1[p];
+					moves |= x1[k] != vx[k] || y1[k] != vy[k] || z1[k] != vz[k];
+				}
+			}
+			float xmin = min4(vx), xmax = max4(vx), ymin = min4(vy), ymax = max4(vy);
+			if (moves) {
+				float a = min4(x1), b = max4(x1), c = min4(y1), d = max4(y1);
+				xmin = a < xmin ? a : xmin;
+				xmax = b > xmax ? b : xmax;
+				ymin = c < ymin ? c : ymin;
+				ymax = d > ymax ? d : ymax;
+			}
+			/* A NaN coordinate can hide in the bound; the edge tests,
+			 * where NaN compares false, reject its samples. */
+			if (!(xmax >= rx0 && xmin <= rx1 && ymax >= ry0 && ymin <= ry1))
+				continue;
+			uint32_t sx0, sx1, sy0, sy1;
+			if (!sample_range(xmin, xmax, o->xsamples, h->gx0, gx1, &sx0, &sx1) ||
+			    !sample_range(ymin, ymax, o->ysamples, h->gy0, gy1, &sy0, &sy1))
+				continue;
+
+			if (!moves) {
+				if (!quad_init(&q, vx, vy, g->cull_backfacing, g->flip))
+					continue;
+				for (uint32_t gy = sy0; gy <= sy1; gy++) {
+					size_t row = (size_t)(gy - h->gy0) * h->sw;
+					for (uint32_t gx = sx0; gx <= sx1; gx++) {
+						struct sample *s = h->samp + row + (gx - h->gx0);
+						float w[4], z;
+						float *wp = g->smooth ? w : NULL;
+						if (!quad_test(&q, s->x, s->y, vz, wp, &z))
+							continue;
+						sample_hit(h, s, z, &m, wp);
+					}
+				}
+				continue;
+			}
+
+			/* Moving: each sample sees the quad at its own time. */
+			for (uint32_t gy = sy0; gy <= sy1; gy++) {
+				struct sample *row = h->samp + (size_t)(gy - h->gy0) * h->sw;
+				for (uint32_t gx = sx0; gx <= sx1; gx++) {
+					struct sample *s = row + (gx - h->gx0);
+					float tx[4], ty[4], tz[4], w[4], z;
+					for (int k = 0; k < 4; k++) {
+						tx[k] = lerpf(vx[k], x1[k], s->t);
+						ty[k] = lerpf(vy[k], y1[k], s->t);
+						tz[k] = lerpf(vz[k], z1[k], s->t);
+					}
+					float *wp = g->smooth ? w : NULL;
+					if (!quad_init(&q, tx, ty, g->cull_backfacing, g->flip) ||
+					    !quad_test(&q, s->x, s->y, tz, wp, &z))
+						continue;
+					sample_hit(h, s, z, &m, wp);
+				}
+			}
+		}
+	}
+}
+
+/* ---- resolving the bucket ---- */
+
+static float tab_lookup(const float *tab, float scale, float a)
+{
+	float f = a * scale;
+	int i = (int)f;
+	if (i >= TAB_N)
+		return tab[TAB_N];
+	float r = f - (float)i;
+	return tab[i] + (tab[i + 1] - tab[i]) * r;
+}
+
+/* The radial Catmull-Rom's weight; (dx, dy) within the support rectangle. */
+static float radial_weight(const struct reyes_hider *h, float dx, float dy)
+{
+	float r2 = dx * dx + dy * dy;
+	if (r2 >= h->r2max)
+		return h->r2max < 4.0f ? h->tabr[TAB_N] : 0.0f;
+	return tab_lookup(h->tabr, h->scr, r2);
+}
+
+/*
+ * For the separable filters, each sample's weight factors toward the pixel
+ * columns and rows around it: wx[si * K + k] for pixel column
+ * (the sample's column - mx + k), 0 outside the support [-hw, hw); wy alike.
+ */
+static void axis_weights(struct reyes_hider *h)
+{
+	const struct reyes_hider_opts *o = &h->o;
+	uint32_t K = 2 * h->mx + 1, L = 2 * h->my + 1;
+	float hw = h->hw, hh = h->hh;
+	for (uint32_t sy = 0; sy < h->sh; sy++) {
+		uint32_t spy = (h->gy0 + sy) / o->ysamples;
+		uint32_t spx = h->gx0 / o->xsamples, i = 0;
+		for (uint32_t sx = 0; sx < h->sw; sx++) {
+			size_t si = (size_t)sy * h->sw + sx;
+			const struct sample *s = &h->samp[si];
+			float *wx = h->swx + si * K, *wy = h->swy + si * L;
+			/* Offsets to the centres of pixels spx - mx + k: bx - k. */
+			float bx = (s->x - (float)spx) - 0.5f + (float)h->mx;
+			float by = (s->y - (float)spy) - 0.5f + (float)h->my;
+			for (uint32_t k = 0; k < K; k++) {
+				float dx = bx - (float)k;
+				bool in = dx >= -hw && dx < hw;
+				wx[k] = in ? tab_lookup(h->tabx, h->scx, fabsf(dx)) : 0.0f;
+			}
+			for (uint32_t k = 0; k < L; k++) {
+				float dy = by - (float)k;
+				bool in = dy >= -hh && dy < hh;
+				wy[k] = in ? tab_lookup(h->taby, h->scy, fabsf(dy)) : 0.0f;
+			}
+			if (++i == o->xsamples) {
+				i = 0;
+				spx++;
+			}
+		}
+	}
+}
+
+/* Composite every sample of the region front to back. */
+static void composite(struct reyes_hider *h, size_t n)
+{
+	uint32_t naov = h->o.naov;
+	for (size_t si = 0; si < n; si++) {
+		const struct sample *s = &h->samp[si];
+		float *col = h->scol + si * 4;
+		float *aov = naov ? h->saov + si * naov : NULL;
+		float T[3] = { 1.0f, 1.0f, 1.0f }, C[3] = { 0, 0, 0 }, A[3] = { 0, 0, 0 };
+		for (uint32_t k = 0; k < naov; k++)
+			aov[k] = 0.0f;
+		for (uint32_t i = s->head; i != NIL; i = h->hits[i].next) {
+			const struct hit *c = &h->hits[i];
+			if (!c->matte) {
+				for (int k = 0; k < 3; k++) {
+					C[k] += T[k] * c->c[k];
+					A[k] += T[k] * c->o[k];
+				}
+				if (naov) {
+					float tm = (T[0] + T[1] + T[2]) * (1.0f / 3.0f);
+					const float *ha = h->hit_aov + (size_t)i * naov;
+					for (uint32_t k = 0; k < naov; k++)
+						aov[k] += tm * ha[k];
+				}
+			}
+			for (int k = 0; k < 3; k++)
+				T[k] *= 1.0f - c->o[k];
+		}
+		col[0] = C[0];
+		col[1] = C[1];
+		col[2] = C[2];
+		col[3] = (A[0] + A[1] + A[2]) * (1.0f / 3.0f);
+
+		float z = s->zopq;
+		if (h->o.depthfilter == REYES_DEPTH_MIDPOINT)
+			z = s->zo[1] < INFINITY ? 0.5f * (s->zo[0] + s->zo[1]) : INFINITY;
+		h->sz[si] = z;
+	}
+}
+
+/*
+ * Filter the samples around pixel (x, y) into @rgba (4 floats) and @aov
+ * (naov floats); either may be NULL. Samples are visited in row-major image
+ * order whatever the bucket, so every bucketing gives the same sums.
+ */
+static void filter_pixel(struct reyes_hider *h, uint32_t x, uint32_t y, float *rgba, float *aov)
+{
+	const struct reyes_hider_opts *o = &h->o;
+	uint32_t xs = o->xsamples, ys = o->ysamples, naov = aov ? o->naov : 0;
+	uint32_t K = 2 * h->mx + 1, L = 2 * h->my + 1;
+	const struct sample *samp = h->samp;
+	const float *scol = h->scol, *saov = h->saov, *swx = h->swx, *swy = h->swy;
+	double *acc_aov = h->acc_aov;
+	bool radial = h->radial;
+	float hw = h->hw, hh = h->hh;
+	float cx = (float)x + 0.5f, cy = (float)y + 0.5f;
+	/*
+	 * Sample columns and rows whose strata overlap the support, within the
+	 * region: stratum gx spans (gx, gx + 1) / xsamples.
+	 */
+	int64_t gxl = (int64_t)floor(((double)cx - hw) * xs);
+	int64_t gxh = (int64_t)ceil(((double)cx + hw) * xs);
+	int64_t gyl = (int64_t)floor(((double)cy - hh) * ys);
+	int64_t gyh = (int64_t)ceil(((double)cy + hh) * ys);
+	uint32_t sx0 = gxl > (int64_t)h->gx0 ? (uint32_t)gxl - h->gx0 : 0;
+	uint32_t sy0 = gyl > (int64_t)h->gy0 ? (uint32_t)gyl - h->gy0 : 0;
+	uint32_t sx1 = gxh < (int64_t)h->gx0 + h->sw ? (uint32_t)gxh - h->gx0 : h->sw;
+	uint32_t sy1 = gyh < (int64_t)h->gy0 + h->sh ? (uint32_t)gyh - h->gy0 : h->sh;
+	double acc[4] = { 0, 0, 0, 0 }, wsum = 0.0;
+
+	for (uint32_t k = 0; k < naov; k++)
+		acc_aov[k] = 0.0;
+	/* kx: which of the K pixel columns around a sample this pixel is. */
+	uint32_t kx0 = x + h->mx - (h->gx0 + sx0) / xs, i0 = (h->gx0 + sx0) % xs;
+	for (uint32_t sy = sy0; sy < sy1; sy++) {
+		uint32_t ky = y + h->my - (h->gy0 + sy) / ys;
+		size_t rowi = (size_t)sy * h->sw;
+		uint32_t kx = kx0, i = i0;
+		for (uint32_t sx = sx0; sx < sx1; sx++) {
+			size_t si = rowi + sx;
+			float w;
+			if (radial) {
+				float dx = samp[si].x - cx, dy = samp[si].y - cy;
+				bool in = dx >= -hw && dx < hw && dy >= -hh && dy < hh;
+				w = in ? radial_weight(h, dx, dy) : 0.0f;
+			} else {
+				w = swx[si * K + kx] * swy[si * L + ky];
+			}
+			if (++i == xs) {
+				i = 0;
+				kx--;
+			}
+			if (w == 0.0f)
+				continue;
+			const float *c = scol + si * 4;
+			acc[0] += (double)w * c[0];
+			acc[1] += (double)w * c[1];
+			acc[2] += (double)w * c[2];
+			acc[3] += (double)w * c[3];
+			wsum += w;
+			if (naov) {
+				const float *a = saov + si * naov;
+				for (uint32_t k = 0; k < naov; k++)
+					acc_aov[k] += (double)w * a[k];
+			}
+		}
+	}
+	double inv = wsum != 0.0 ? 1.0 / wsum : 0.0;
+	if (rgba) {
+		for (int k = 0; k < 4; k++)
+			rgba[k] = (float)(acc[k] * inv);
+	}
+	for (uint32_t k = 0; k < naov; k++)
+		aov[k] = (float)(acc_aov[k] * inv);
+}
+
+static float pixel_depth(const struct reyes_hider *h, uint32_t x, uint32_t y)
+{
+	const struct reyes_hider_opts *o = &h->o;
+	uint32_t sx0 = x * o->xsamples - h->gx0, sy0 = y * o->ysamples - h->gy0;
+	float zmin = INFINITY, zmax = -INFINITY;
+	double sum = 0.0;
+	uint32_t nhit = 0;
+	for (uint32_t j = 0; j < o->ysamples; j++) {
+		const float *row = h->sz + (size_t)(sy0 + j) * h->sw + sx0;
+		for (uint32_t i = 0; i < o->xsamples; i++) {
+			float z = row[i];
+			zmin = z < zmin ? z : zmin;
+			zmax = z > zmax ? z : zmax;
+			if (z < INFINITY) {
+				sum += z;
+				nhit++;
+			}
+		}
+	}
+	float z;
+	switch (o->depthfilter) {
+	case REYES_DEPTH_MAX:
+		z = zmax;
+		break;
+	case REYES_DEPTH_AVERAGE:
+		z = nhit ? (float)(sum / nhit) : INFINITY;
+		break;
+	case REYES_DEPTH_MIN:
+	case REYES_DEPTH_MIDPOINT:
+	default:
+		z = zmin;
+		break;
+	}
+	return z < INFINITY ? z : NO_DEPTH;
+}
+
+uint64_t reyes_hider_end(struct reyes_hider *h, float *rgba, float *zout, float *aovout)
+{
+	if (!h || !h->active)
+		return 0;
+	const struct reyes_hider_opts *o = &h->o;
+	uint32_t naov = o->naov;
+	uint32_t bw = h->px1 - h->px0;
+	size_t n = (size_t)h->sw * h->sh;
+	h->active = false;
+
+	if (h->inserted == 0) {
+		/* Nothing was hit: skip the filter. */
+		for (uint32_t y = h->py0; y < h->py1; y++) {
+			for (uint32_t x = h->px0; x < h->px1; x++) {
+				size_t p = (size_t)(y - h->py0) * bw + (x - h->px0);
+				if (rgba)
+					memset(rgba + p * 4, 0, 4 * sizeof(float));
+				if (zout)
+					zout[p] = NO_DEPTH;
+				if (aovout && naov)
+					memset(aovout + p * naov, 0, naov * sizeof(float));
+			}
+		}
+		return n;
+	}
+
+	uint32_t K = 2 * h->mx + 1, L = 2 * h->my + 1;
+	if (n > h->scratch_cap) {
+		free(h->scol);
+		free(h->saov);
+		free(h->sz);
+		free(h->swx);
+		free(h->swy);
+		h->scol = rl_xmalloc(n * 4 * sizeof(float));
+		h->saov = naov ? rl_xmalloc(n * naov * sizeof(float)) : NULL;
+		h->sz = rl_xmalloc(n * sizeof(float));
+		h->swx = rl_xmalloc(n * K * sizeof(float));
+		h->swy = rl_xmalloc(n * L * sizeof(float));
+		h->scratch_cap = n;
+	}
+	composite(h, n);
+	if (!h->radial)
+		axis_weights(h);
+
+	for (uint32_t y = h->py0; y < h->py1; y++) {
+		for (uint32_t x = h->px0; x < h->px1; x++) {
+			size_t p = (size_t)(y - h->py0) * bw + (x - h->px0);
+			if (rgba || (aovout && naov))
+				filter_pixel(h, x, y, rgba ? rgba + p * 4 : NULL,
+					     aovout ? aovout + p * naov : NULL);
+			if (zout)
+				zout[p] = pixel_depth(h, x, y);
+		}
+	}
+	return n;
+}

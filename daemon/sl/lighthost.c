@@ -94,7 +94,10 @@ static bool lh_light(void *user, int i, struct sl_exec *surface, uint32_t n, uin
 	copy_global(lx, surface, SL_GLOBAL_TIME, 1, mask);
 
 	sl_exec_set_peer(lx, SL_PEER_SURFACE, surface);
+	int outer = lh->running;
+	lh->running = i;
 	bool ok = sl_exec_run(lx, &lh->host);
+	lh->running = outer;
 	sl_exec_set_peer(lx, SL_PEER_SURFACE, NULL);
 	if (!ok)
 		return false;
@@ -219,6 +222,10 @@ static bool lh_message(void *user, int i, const char *name, int type, int arrayl
 static bool lh_space(void *user, const char *name, float m[16])
 {
 	const struct sl_lighthost *lh = user;
+	if (name && lh->running >= 0 && lh->light_shader_mats && !strcmp(name, "shader")) {
+		memcpy(m, lh->light_shader_mats[lh->running], 16 * sizeof(float));
+		return true;
+	}
 	if (!name || !lh->space_names || !lh->space_mats)
 		return false;
 	for (int k = 0; k < lh->nspaces; k++)
@@ -240,4 +247,5 @@ void sl_lighthost_init(struct sl_lighthost *lh, struct sl_exec **lights, int nli
 	lh->host.light_category = lh_category;
 	lh->host.light_message = lh_message;
 	lh->host.space = lh_space;
+	lh->running = -1;
 }

@@ -25,6 +25,15 @@ struct sl_lighthost {
 	int nspaces;
 	/* Optional per-light categories, used for lights without a __category parameter. */
 	const char *const *categories;
+	/*
+	 * Optional per-light "shader" space (that light's coordinate system to
+	 * "current"), answered for "shader" while that light runs.
+	 */
+	const float (*light_shader_mats)[16];
+	/* Free for the code that embeds the light host (its own callbacks reach it here). */
+	void *owner;
+	/* Private: the light being run, or -1. */
+	int running;
 };
 
 /**

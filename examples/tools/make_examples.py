@@ -1,0 +1,261 @@
+#!/usr/bin/env python3
+"""Writes the example scenes of examples/ (RIB). Run from the repository root:
+    python3 examples/tools/make_examples.py
+The scenes are committed; this script documents how they were made."""
+import math, os
+
+def normalize(v):
+    l = math.sqrt(sum(c * c for c in v))
+    return [c / l for c in v]
+
+def cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+def look_at(eye, target, up=(0, 1, 0)):
+    """World-to-camera for RenderMan's camera (x right, y up, z forward), row vectors."""
+    z = normalize([t - e for t, e in zip(target, eye)])
+    x = normalize(cross(up, z))
+    y = cross(z, x)
+    dot = lambda a, b: sum(p * q for p, q in zip(a, b))
+    m = [x[0], y[0], z[0], 0, x[1], y[1], z[1], 0, x[2], y[2], z[2], 0,
+         -dot(eye, x), -dot(eye, y), -dot(eye, z), 1]
+    return "Transform [" + " ".join("%.6g" % v for v in m) + "]"
+
+def place(eye, target, up=(0, 1, 0)):
+    """Camera-to-world: puts a light that shines down its own +z at eye, aimed at target."""
+    z = normalize([t - e for t, e in zip(target, eye)])
+    x = normalize(cross(up, z))
+    y = cross(z, x)
+    m = x + [0] + y + [0] + z + [0] + list(eye) + [1]
+    return "ConcatTransform [" + " ".join("%.6g" % v for v in m) + "]"
+
+def quad(y, half):
+    return ('Polygon "P" [%g %g %g  %g %g %g  %g %g %g  %g %g %g]'
+            % (-half, y, -half, -half, y, half, half, y, half, half, y, -half))
+
+def write(path, text):
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path, "w") as f:
+        f.write(text)
+
+# ---- shadows: the benchmark scene; a shadow pass, MakeShadow, the beauty pass ----
+key_from, key_to = (4, 6, -3), (0, 0.5, 2)
+cone = 0.45
+shadow = """##RenderMan RIB
+# A few primitives, plastic surfaces and a shadow-mapped spot light, 640x360 at 4x4
+# samples. Frame 1 renders depth from the light; MakeShadow turns it into a map;
+# frame 2 renders the view with the map.
+version 3.04
+FrameBegin 1
+  Format 512 512 1
+  PixelSamples 1 1
+  PixelFilter "box" 1 1
+  Hider "hidden" "depthfilter" "midpoint"
+  Projection "perspective" "fov" %(fov)g
+  Display "key.z" "zfile" "z"
+  %(light_cam)s
+  WorldBegin
+    ShadingRate 4
+    Surface "constant"
+%(geometry)s
+  WorldEnd
+FrameEnd
+MakeShadow "key.z" "key.shd"
+FrameBegin 2
+  Format 640 360 1
+  PixelSamples 4 4
+  PixelFilter "gaussian" 2 2
+  Projection "perspective" "fov" 40
+  Display "shadows.exr" "file" "rgba"
+  %(cam)s
+  WorldBegin
+    LightSource "ambientlight" 1 "intensity" 0.08
+    LightSource "shadowspot" 2 "intensity" 60 "from" [%(kf)s] "to" [%(kt)s]
+        "coneangle" %(cone)g "conedeltaangle" 0.08 "shadowname" "key.shd"
+        "samples" 16 "blur" 0.004
+    LightSource "pointlight" 3 "intensity" 6 "from" [-4 3 -2] "lightcolor" [0.4 0.5 0.8]
+    Surface "plastic" "Kd" 0.7 "Ks" 0.4 "roughness" 0.08
+%(geometry)s
+  WorldEnd
+FrameEnd
+"""
+geometry = """    AttributeBegin
+      Color [0.8 0.8 0.75]
+      %s
+    AttributeEnd
+    AttributeBegin
+      Color [0.9 0.25 0.2]
+      Translate -0.8 0.7 2
+      Sphere 0.7 -0.7 0.7 360
+    AttributeEnd
+    AttributeBegin
+      Color [0.2 0.5 0.9]
+      Translate 0.9 0 2.6
+      Rotate -90 1 0 0
+      Cylinder 0.45 0 1.4 360
+      Translate 0 0 1.4
+      Disk 0 0.45 360
+    AttributeEnd
+    AttributeBegin
+      Color [0.3 0.8 0.3]
+      Translate 0.2 0.25 1.2
+      Rotate 90 1 0 0
+      Torus 0.35 0.12 0 360 360
+    AttributeEnd""" % quad(0, 4)
+write("examples/shadows/shadows.rib", shadow % dict(
+    fov=2 * math.degrees(cone) + 6, light_cam=look_at(key_from, key_to),
+    cam=look_at((0, 2.2, -3.5), (0, 0.6, 2)), geometry=geometry,
+    kf="%g %g %g" % key_from, kt="%g %g %g" % key_to, cone=cone))
+
+# ---- lights32: a set lit by 36 lights, several surface shaders ----
+lights = ['    LightSource "ambientlight" 1 "intensity" 0.05',
+          '    LightSource "distantlight" 2 "intensity" 0.15 "from" [0 1 0] "to" [0.3 0 0.5]']
+h = 3
+for i in range(24):
+    a = 2 * math.pi * i / 24
+    c = [0.5 + 0.5 * math.cos(a), 0.5 + 0.5 * math.cos(a + 2.1), 0.5 + 0.5 * math.cos(a + 4.2)]
+    lights.append('    LightSource "pointlight" %d "intensity" 0.35 "from" [%.3f 2.2 %.3f] '
+                  '"lightcolor" [%.3f %.3f %.3f]' % (h, 3.2 * math.cos(a), 3 + 3.2 * math.sin(a), *c))
+    h += 1
+for i in range(8):
+    a = 2 * math.pi * (i + 0.5) / 8
+    f = (2.5 * math.cos(a), 3.5, 3 + 2.5 * math.sin(a))
+    lights.append('    LightSource "spotlight" %d "intensity" 5 "from" [%.3f %.3f %.3f] '
+                  '"to" [%.3f 0 %.3f] "coneangle" 0.35 "conedeltaangle" 0.1'
+                  % (h, *f, 0.8 * math.cos(a), 3 + 0.8 * math.sin(a)))
+    h += 1
+lights.append('    TransformBegin\n      %s\n      LightSource "uberlight" %d "intensity" 3'
+              ' "width" 0.6 "height" 0.4 "roundness" 0.5\n    TransformEnd'
+              % (place((0.01, 4, 0), (0, 0, 3)), h))
+h += 1
+lights.append('    TransformBegin\n      %s\n      LightSource "uberlight" %d "intensity" 2'
+              ' "cuton" 0.5 "cutoff" 8 "barnleft" 0.3 "barnedge" 0.05\n    TransformEnd'
+              % (place((-3, 1, 1), (0, 0.5, 3)), h))
+lights32 = """##RenderMan RIB
+# A set lit by %(n)d lights (ambient, distant, 24 point, 8 spot, 2 uberlights) with
+# several surface shaders. 320x180, 2x2 samples.
+version 3.04
+FrameBegin 1
+  Format 320 180 1
+  PixelSamples 2 2
+  Projection "perspective" "fov" 45
+  Display "lights32.exr" "file" "rgba"
+  %(cam)s
+  WorldBegin
+%(lights)s
+    AttributeBegin
+      Surface "matte"
+      Color [0.7 0.7 0.7]
+      %(floor)s
+    AttributeEnd
+    AttributeBegin
+      Surface "plastic" "roughness" 0.05
+      Color [0.9 0.9 0.9]
+      Translate 0 0.6 3
+      Sphere 0.6 -0.6 0.6 360
+    AttributeEnd
+    AttributeBegin
+      Surface "metal" "roughness" 0.15
+      Color [0.9 0.7 0.3]
+      Translate -1.6 0.4 3.5
+      Sphere 0.4 -0.4 0.4 360
+    AttributeEnd
+    AttributeBegin
+      Surface "defaultsurface"
+      Translate 1.5 0 3.4
+      Rotate -90 1 0 0
+      Cone 1.2 0.5 360
+    AttributeEnd
+    AttributeBegin
+      Surface "paintedplastic" "Kd" 0.8
+      Color [0.3 0.6 0.9]
+      Translate 0.2 0.3 1.8
+      Rotate 60 1 0 0
+      Torus 0.3 0.1 0 360 360
+    AttributeEnd
+  WorldEnd
+FrameEnd
+""" % dict(n=len(lights), cam=look_at((0, 1.6, -1.5), (0, 0.4, 3)), lights="\n".join(lights),
+           floor=quad(0, 6).replace("Polygon", "Polygon").replace(" 6 ", " 6 "))
+write("examples/lights32/lights32.rib", lights32)
+
+# ---- motion: motion blur and transparency at 8x8 samples ----
+motion = """##RenderMan RIB
+# Motion blur and transparency: two moving spheres behind a 40%%-opaque pane,
+# 8x8 samples. 320x180.
+version 3.04
+FrameBegin 1
+  Format 320 180 1
+  PixelSamples 8 8
+  Shutter 0 1
+  Projection "perspective" "fov" 40
+  Display "motion.exr" "file" "rgba"
+  %(cam)s
+  WorldBegin
+    LightSource "distantlight" 1 "intensity" 0.9 "from" [-1 2 -1] "to" [0 0 0]
+    LightSource "ambientlight" 2 "intensity" 0.15
+    Surface "plastic"
+    AttributeBegin
+      Color [0.6 0.6 0.6]
+      %(floor)s
+    AttributeEnd
+    AttributeBegin
+      Color [0.9 0.3 0.1]
+      MotionBegin [0 1]
+        Translate -1.2 0.5 3
+        Translate 0.4 0.5 3
+      MotionEnd
+      Sphere 0.5 -0.5 0.5 360
+    AttributeEnd
+    AttributeBegin
+      Color [0.2 0.4 0.9]
+      MotionBegin [0 1]
+        Translate 1 0.35 2.5
+        Translate 1 1.0 2.5
+      MotionEnd
+      Sphere 0.35 -0.35 0.35 360
+    AttributeEnd
+    AttributeBegin
+      Surface "constant"
+      Color [0.7 0.9 0.7]
+      Opacity [0.4 0.4 0.4]
+      Polygon "P" [-0.8 0 1.6  0.2 0 1.6  0.2 1.3 1.6  -0.8 1.3 1.6]
+    AttributeEnd
+  WorldEnd
+FrameEnd
+""" % dict(cam=look_at((0, 1.2, -1.5), (0, 0.5, 3)), floor=quad(0, 5))
+write("examples/motion/motion.rib", motion)
+
+# ---- displaced: a displaced sphere on a displaced ground ----
+displaced = """##RenderMan RIB
+# Displacement: noise-displaced sphere and ground (noisebump), with a matching
+# displacementbound. 320x240.
+version 3.04
+FrameBegin 1
+  Format 320 240 1
+  PixelSamples 3 3
+  Projection "perspective" "fov" 40
+  Display "displaced.exr" "file" "rgba"
+  %(cam)s
+  WorldBegin
+    LightSource "distantlight" 1 "intensity" 1 "from" [-2 3 -1] "to" [0 0 2]
+    LightSource "ambientlight" 2 "intensity" 0.1
+    AttributeBegin
+      Surface "plastic" "roughness" 0.2
+      Color [0.8 0.6 0.4]
+      Attribute "displacementbound" "sphere" [0.15]
+      Displacement "noisebump" "Km" 0.15 "frequency" 3 "octaves" 3
+      Translate 0 1 3
+      Sphere 0.9 -0.9 0.9 360
+    AttributeEnd
+    AttributeBegin
+      Surface "matte"
+      Color [0.5 0.6 0.5]
+      Attribute "displacementbound" "sphere" [0.1]
+      Displacement "noisebump" "Km" 0.1 "frequency" 1.5
+      %(floor)s
+    AttributeEnd
+  WorldEnd
+FrameEnd
+""" % dict(cam=look_at((0, 2, -1.5), (0, 0.8, 3)), floor=quad(0, 5))
+write("examples/displaced/displaced.rib", displaced)
