@@ -199,15 +199,24 @@ struct enc {
 	uint64_t nonfinite, clamped;
 };
 
-/* Convert the rectangle (x0, y0, w, h) of @e->im into the planes. */
-static void fill_planes(struct enc *e, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h)
+/*
+ * Convert the rectangle (x0, y0, w, h) of @e->im into the chunk's planes, in
+ * the file's channel order and packed one after another (the unpacked chunk
+ * layout): OpenEXR 3.1's packer takes that layout for granted when every
+ * channel has the same type, whatever the per-channel pointers say.
+ * Returns each file channel's plane in @ptr.
+ */
+static void fill_planes(struct enc *e, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h,
+			int nfile, uint8_t **ptr)
 {
 	const struct reyes_image *im = e->im;
 	uint32_t nch = im->nchannels;
-	for (uint32_t c = 0; c < nch; c++) {
-		uint8_t *plane = e->planes + (size_t)c * e->plane_bytes;
+	uint8_t *plane = e->planes;
+	for (int j = 0; j < nfile; j++) {
+		int c = e->order[j];
+		ptr[j] = plane;
 		for (uint32_t y = 0; y < h; y++) {
-			const float *src = im->data + (((size_t)(y0 + y) * im->width + x0) * nch + c);
+			const float *src = im->data + (((size_t)(y0 + y) * im->width + x0) * nch + (size_t)c);
 			for (uint32_t x = 0; x < w; x++) {
 				float v = src[(size_t)x * nch];
 				if (!isfinite(v)) {
@@ -227,6 +236,7 @@ static void fill_planes(struct enc *e, uint32_t x0, uint32_t y0, uint32_t w, uin
 				}
 			}
 		}
+		plane += (size_t)w * h * (e->is_half[c] ? 2 : 4);
 	}
 }
 
@@ -242,7 +252,10 @@ static exr_result_t encode_chunk(exr_context_t ctx, exr_encode_pipeline_t *pipe,
 	if (ci->width <= 0 || ci->height <= 0 || (size_t)w * h * 4 > e->plane_bytes ||
 	    x0 + w > e->im->width || y0 + h > e->im->height)
 		return EXR_ERR_INVALID_ARGUMENT;
-	fill_planes(e, x0, y0, w, h);
+	uint8_t *ptr[256];
+	if (pipe->channel_count > 256 || pipe->channel_count != (int)e->im->nchannels)
+		return EXR_ERR_INVALID_ARGUMENT;
+	fill_planes(e, x0, y0, w, h, pipe->channel_count, ptr);
 	for (int j = 0; j < pipe->channel_count; j++) {
 		exr_coding_channel_info_t *ch = &pipe->channels[j];
 		int c = e->order[j];
@@ -251,7 +264,7 @@ static exr_result_t encode_chunk(exr_context_t ctx, exr_encode_pipeline_t *pipe,
 		ch->user_data_type = (uint16_t)(e->is_half[c] ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT);
 		ch->user_pixel_stride = bpe;
 		ch->user_line_stride = (int32_t)w * bpe;
-		ch->encode_from_ptr = e->planes + (size_t)c * e->plane_bytes;
+		ch->encode_from_ptr = ptr[j];
 	}
 	if (!*started) {
 		rv = exr_encoding_choose_default_routines(ctx, 0, pipe);
@@ -563,7 +576,40 @@ static bool get_matrix(exr_context_t ctx, const char *name, float m[16])
 	return false;
 }
 
-/* Where a decoded chunk goes: image @im, pixel (x, y) of the chunk's origin. */
+/* IEEE half to float (exact). */
+static float half_to_float(uint16_t h)
+{
+	uint32_t sign = (uint32_t)(h & 0x8000u) << 16, exp = (h >> 10) & 0x1fu, man = h & 0x3ffu;
+	uint32_t bits;
+	if (exp == 0) {
+		if (man == 0) {
+			bits = sign;
+		} else {
+			/* subnormal: normalise */
+			int e = -1;
+			do {
+				man <<= 1;
+				e++;
+			} while (!(man & 0x400u));
+			bits = sign | (uint32_t)(127 - 15 - e) << 23 | (man & 0x3ffu) << 13;
+		}
+	} else if (exp == 31) {
+		bits = sign | 0x7f800000u | man << 13;
+	} else {
+		bits = sign | (exp + 127 - 15) << 23 | man << 13;
+	}
+	float f;
+	memcpy(&f, &bits, sizeof(f));
+	return f;
+}
+
+/*
+ * Decode one chunk into image @im at the chunk's origin (x, y). The library
+ * decodes into packed planes in the file's channel order and in the file's
+ * own types (OpenEXR 3.1's specialised unpackers assume such layouts and
+ * reorder interleaved 4-channel half data on their own); the conversion to
+ * interleaved float is done here.
+ */
 static exr_result_t decode_chunk(exr_context_t ctx, exr_decode_pipeline_t *pipe, bool *started,
 				 const exr_chunk_info_t *ci, struct reyes_image *im, int64_t x,
 				 int64_t y)
@@ -578,23 +624,63 @@ static exr_result_t decode_chunk(exr_context_t ctx, exr_decode_pipeline_t *pipe,
 	if (pipe->channel_count != (int)im->nchannels)
 		return EXR_ERR_CORRUPT_CHUNK;
 	uint32_t nch = im->nchannels;
+	size_t w = (size_t)ci->width, h = (size_t)ci->height;
+	uint8_t *buf = malloc(w * h * 4 * nch + 1);
+	if (!buf)
+		return EXR_ERR_OUT_OF_MEMORY;
+	size_t off = 0;
 	for (int j = 0; j < pipe->channel_count; j++) {
 		exr_coding_channel_info_t *ch = &pipe->channels[j];
-		if (ch->width != ci->width || ch->height != ci->height)
+		if (ch->width != ci->width || ch->height != ci->height ||
+		    (ch->bytes_per_element != 2 && ch->bytes_per_element != 4)) {
+			free(buf);
 			return EXR_ERR_CORRUPT_CHUNK;
-		ch->user_bytes_per_element = 4;
-		ch->user_data_type = EXR_PIXEL_FLOAT;
-		ch->user_pixel_stride = (int32_t)(nch * 4);
-		ch->user_line_stride = (int32_t)(im->width * nch * 4);
-		ch->decode_to_ptr = (uint8_t *)(im->data + ((size_t)y * im->width + (size_t)x) * nch + j);
+		}
+		int bpe = ch->bytes_per_element;
+		ch->user_bytes_per_element = (int16_t)bpe;
+		ch->user_data_type = ch->data_type;
+		ch->user_pixel_stride = bpe;
+		ch->user_line_stride = (int32_t)(w * (size_t)bpe);
+		ch->decode_to_ptr = buf + off;
+		off += w * h * (size_t)bpe;
 	}
 	if (!*started) {
 		rv = exr_decoding_choose_default_routines(ctx, 0, pipe);
-		if (rv != EXR_ERR_SUCCESS)
+		if (rv != EXR_ERR_SUCCESS) {
+			free(buf);
 			return rv;
+		}
 		*started = true;
 	}
-	return exr_decoding_run(ctx, 0, pipe);
+	rv = exr_decoding_run(ctx, 0, pipe);
+	if (rv == EXR_ERR_SUCCESS) {
+		off = 0;
+		for (int j = 0; j < pipe->channel_count; j++) {
+			const exr_coding_channel_info_t *ch = &pipe->channels[j];
+			const uint8_t *plane = buf + off;
+			for (size_t yy = 0; yy < h; yy++)
+				for (size_t xx = 0; xx < w; xx++) {
+					size_t k = yy * w + xx;
+					float v;
+					if (ch->data_type == EXR_PIXEL_HALF) {
+						uint16_t hv;
+						memcpy(&hv, plane + k * 2, 2);
+						v = half_to_float(hv);
+					} else if (ch->data_type == EXR_PIXEL_UINT) {
+						uint32_t u;
+						memcpy(&u, plane + k * 4, 4);
+						v = (float)u;
+					} else {
+						memcpy(&v, plane + k * 4, 4);
+					}
+					im->data[(((size_t)y + yy) * im->width + (size_t)x + xx) * nch +
+						 (size_t)j] = v;
+				}
+			off += w * h * (size_t)ch->bytes_per_element;
+		}
+	}
+	free(buf);
+	return rv;
 }
 
 static uint64_t box_w(const exr_attr_box2i_t *b)

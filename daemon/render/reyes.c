@@ -274,6 +274,20 @@ static enum bound_result piece_bound(const struct render *r, const struct reyes_
 	float zmin = 1e30f, zmax = -1e30f;
 	float x0 = 1e30f, y0 = 1e30f, x1 = -1e30f, y1 = -1e30f;
 	bool straddle = false;
+	/*
+	 * Side planes of the view frustum (through the eye, widened by the filter
+	 * margin): a bound with all its corners outside one of them cannot be
+	 * seen, whichever side of the eye plane it lies on.
+	 */
+	const struct camera *cam = &r->cam;
+	float sw = (cam->screen[1] - cam->screen[0]) / cam->xres;
+	float sh = (cam->screen[3] - cam->screen[2]) / cam->yres;
+	float fl = cam->screen[0] + ((float)r->px0 - r->margin) * sw;
+	float fr = cam->screen[0] + ((float)r->px1 + r->margin) * sw;
+	float ft = cam->screen[3] - ((float)r->py0 - r->margin) * sh;
+	float fb = cam->screen[3] - ((float)r->py1 + r->margin) * sh;
+	float fo = cam->perspective ? cam->focal : 1;
+	uint32_t outside[4] = { 0, 0, 0, 0 }, ncorners = 0;
 	for (int t = 0; t < 2; t++) {
 		float lo[3], hi[3], m[16];
 		reyes_patch_bound(pa, t, lo, hi);
@@ -289,6 +303,12 @@ static enum bound_result piece_bound(const struct render *r, const struct reyes_
 			for (int g = 0; g < 8; g++) {
 				float q[3] = { c[0] + (g & 1 ? grow : -grow), c[1] + (g & 2 ? grow : -grow),
 					       c[2] + (g & 4 ? grow : -grow) };
+				float w = cam->perspective ? q[2] : 1;
+				outside[0] += fo * q[0] < fl * w;
+				outside[1] += fo * q[0] > fr * w;
+				outside[2] += fo * q[1] < fb * w;
+				outside[3] += fo * q[1] > ft * w;
+				ncorners++;
 				if (q[2] < zmin)
 					zmin = q[2];
 				if (q[2] > zmax)
@@ -313,6 +333,9 @@ static enum bound_result piece_bound(const struct render *r, const struct reyes_
 	*zmin_out = zmin;
 	if (zmax < r->cam.near || zmin > r->cam.far)
 		return B_CULL;
+	for (int k = 0; k < 4; k++)
+		if (outside[k] == ncorners)
+			return B_CULL;
 	if (straddle || (r->cam.perspective && zmin < r->cam.near))
 		return B_STRADDLE;
 	rb[0] = x0;
