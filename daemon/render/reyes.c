@@ -877,7 +877,10 @@ static bool shade_job(struct tctx *t, struct job *job)
 		}
 		free(P);
 		get_global(dx, SL_GLOBAL_N, c.N, 3, n);
-		recompute_ng(&c, a->flip_normals);
+		/* A camera-space cross product turns inside out under a mirroring
+		 * transform, where the object-space normal (carried by the normal
+		 * matrix) does not. */
+		recompute_ng(&c, a->flip_normals != (sl_m44_det(m0) < 0));
 	}
 	/* the incident ray, eye at the origin (orthographic: straight ahead) */
 	for (uint32_t k = 0; k < n; k++) {

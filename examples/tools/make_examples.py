@@ -114,21 +114,21 @@ h = 3
 for i in range(24):
     a = 2 * math.pi * i / 24
     c = [0.5 + 0.5 * math.cos(a), 0.5 + 0.5 * math.cos(a + 2.1), 0.5 + 0.5 * math.cos(a + 4.2)]
-    lights.append('    LightSource "pointlight" %d "intensity" 0.35 "from" [%.3f 2.2 %.3f] '
+    lights.append('    LightSource "pointlight" %d "intensity" 0.1 "from" [%.3f 2.2 %.3f] '
                   '"lightcolor" [%.3f %.3f %.3f]' % (h, 3.2 * math.cos(a), 3 + 3.2 * math.sin(a), *c))
     h += 1
 for i in range(8):
     a = 2 * math.pi * (i + 0.5) / 8
     f = (2.5 * math.cos(a), 3.5, 3 + 2.5 * math.sin(a))
-    lights.append('    LightSource "spotlight" %d "intensity" 5 "from" [%.3f %.3f %.3f] '
+    lights.append('    LightSource "spotlight" %d "intensity" 1.2 "from" [%.3f %.3f %.3f] '
                   '"to" [%.3f 0 %.3f] "coneangle" 0.35 "conedeltaangle" 0.1'
                   % (h, *f, 0.8 * math.cos(a), 3 + 0.8 * math.sin(a)))
     h += 1
-lights.append('    TransformBegin\n      %s\n      LightSource "uberlight" %d "intensity" 3'
+lights.append('    TransformBegin\n      %s\n      LightSource "uberlight" %d "intensity" 0.8'
               ' "width" 0.6 "height" 0.4 "roundness" 0.5\n    TransformEnd'
               % (place((0.01, 4, 0), (0, 0, 3)), h))
 h += 1
-lights.append('    TransformBegin\n      %s\n      LightSource "uberlight" %d "intensity" 2'
+lights.append('    TransformBegin\n      %s\n      LightSource "uberlight" %d "intensity" 0.6'
               ' "cuton" 0.5 "cutoff" 8 "barnleft" 0.3 "barnedge" 0.05\n    TransformEnd'
               % (place((-3, 1, 1), (0, 0.5, 3)), h))
 lights32 = """##RenderMan RIB

@@ -309,6 +309,49 @@ static void test_transparency_order(void)
 	}
 }
 
+/*
+ * A one-sided sphere under a mirroring transform (Scale 1 1 -1) still shows
+ * its outside: the same coverage as without the mirror, and its normals
+ * still face the camera (a matte sphere lit from the camera is not black).
+ */
+static void test_mirror_one_sided(void)
+{
+	float total[2] = { 0, 0 }, lit[2] = { 0, 0 };
+	for (int m = 0; m < 2; m++) {
+		char rib[1024];
+		snprintf(rib, sizeof(rib),
+			 "Format 32 32 1\n"
+			 "PixelSamples 4 4\n"
+			 "Projection \"orthographic\"\n"
+			 "ScreenWindow -1 1 -1 1\n"
+			 "Display \"mirror.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+			 "WorldBegin\n"
+			 "  LightSource \"distantlight\" 1 \"from\" [0 0 0] \"to\" [0 0 1]\n"
+			 "  Sides 1\n"
+			 "  Surface \"matte\" \"Ka\" 0\n"
+			 "  Translate 0 0 5\n"
+			 "  %s\n"
+			 "  Sphere 0.6 -0.6 0.6 360\n"
+			 "WorldEnd\n",
+			 m ? "Scale 1 1 -1" : "");
+		struct reyes_image im = { 0 };
+		CHECK(render(rib, "mirror.exr", &im));
+		if (!im.data)
+			return;
+		int a = channel(&im, "A"), r = channel(&im, "R");
+		for (size_t p = 0; p < (size_t)im.width * im.height; p++) {
+			total[m] += im.data[p * im.nchannels + (size_t)a];
+			lit[m] += im.data[p * im.nchannels + (size_t)r];
+		}
+		reyes_image_finish(&im);
+	}
+	printf("mirror: coverage %.2f vs %.2f, light %.2f vs %.2f\n", total[1], total[0], lit[1],
+	       lit[0]);
+	CHECK(total[0] > 100);
+	CHECK_NEAR(total[1], total[0], 0.01 * total[0]);
+	CHECK_NEAR(lit[1], lit[0], 0.01 * lit[0]);
+}
+
 int main(void)
 {
 	snprintf(tmpdir, sizeof(tmpdir), "/tmp/relight-render-XXXXXX");
@@ -320,6 +363,7 @@ int main(void)
 	RUN(test_sphere_coverage);
 	RUN(test_motion_coverage);
 	RUN(test_transparency_order);
+	RUN(test_mirror_one_sided);
 	char cmd[600];
 	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", tmpdir);
 	if (system(cmd) != 0)

@@ -1,0 +1,101 @@
+#!/usr/bin/env bash
+# `relight render`: its help, its options, a small scene end to end, and bad
+# scenes ending in `FILE:LINE: error:` with exit status 1 (never a crash).
+source "$(dirname "$0")/lib.sh"
+
+run "help" "$relight" render --help
+expect_status 0
+expect_stdout "^usage: relight render \[OPTIONS\] SCENE.rib"
+expect_stdout "--crop X0 X1 Y0 Y1"
+
+run "listed in relight --help" "$relight" --help
+expect_stdout "render +Render a RIB scene"
+
+run "no scene" "$relight" render
+expect_status 2
+expect_stderr "no scene file"
+
+run "unknown option" "$relight" render --frobnicate x.rib
+expect_status 2
+expect_stderr "unknown option '--frobnicate'"
+
+run "bad threads" "$relight" render --threads 0 x.rib
+expect_status 2
+expect_stderr "--threads needs a number"
+
+run "bad crop" "$relight" render --crop 10 5 0 4 x.rib
+expect_status 2
+expect_stderr "is empty"
+
+run "missing scene" "$relight" render "$work/none.rib"
+expect_status 1
+expect_stderr "cannot read '$work/none.rib'"
+
+cat >"$work/ok.rib" <<'RIB'
+Format 32 24 1
+PixelSamples 2 2
+Display "ok.exr" "file" "rgba"
+WorldBegin
+  LightSource "distantlight" 1
+  Surface "plastic"
+  Translate 0 0 5
+  Sphere 1 -1 1 360
+WorldEnd
+RIB
+run "renders" bash -c "cd '$work' && '$relight' render ok.rib"
+expect_no_crash
+expect_status 0
+expect_stderr "^wrote ok.exr"
+expect_stderr "micropolygons shaded, [0-9]+ subpixel samples, peak memory"
+checks=$((checks + 1))
+[ -s "$work/ok.exr" ] || fail "ok.exr not written"
+if command -v exrheader >/dev/null 2>&1; then
+	run "exrheader reads it" exrheader "$work/ok.exr"
+	expect_status 0
+	expect_stdout "worldToCamera"
+fi
+
+run "-o overrides the display" bash -c "cd '$work' && '$relight' render -q -o other.exr ok.rib"
+expect_status 0
+expect_empty_stdout
+checks=$((checks + 1))
+[ -s "$work/other.exr" ] || fail "other.exr not written"
+
+run "--crop" bash -c "cd '$work' && '$relight' render -q --crop 0 8 0 8 -o crop.exr ok.rib"
+expect_status 0
+
+# check_bad DESCRIPTION LINE MESSAGE RIB-TEXT: exit 1, FILE:LINE: error: MESSAGE.
+check_bad() {
+	printf '%s' "$4" >"$work/bad.rib"
+	run "$1" bash -c "cd '$work' && '$relight' render -q bad.rib"
+	expect_no_crash
+	expect_status 1
+	expect_stderr "bad.rib:$2: error: .*$3"
+}
+
+check_bad "unknown request" 2 "unknown request 'Sphree'" \
+	$'WorldBegin\nSphree 1 -1 1 360\nWorldEnd\n'
+check_bad "argument count" 2 "Sphere" \
+	$'WorldBegin\nSphere 1 -1\nWorldEnd\n'
+check_bad "unbalanced block" 3 "AttributeEnd" \
+	$'WorldBegin\nTransformBegin\nAttributeEnd\nWorldEnd\n'
+check_bad "missing shader" 2 "cannot find shader 'nosuchshader'" \
+	$'WorldBegin\nSurface "nosuchshader"\nSphere 1 -1 1 360\nWorldEnd\n'
+check_bad "unknown shader parameter" 2 "no parameter 'Kdd'" \
+	$'WorldBegin\nSurface "plastic" "Kdd" 1\nSphere 1 -1 1 360\nWorldEnd\n'
+check_bad "NaN" 2 "" \
+	$'WorldBegin\nSphere nan -1 1 360\nWorldEnd\n'
+check_bad "truncated" 2 "" \
+	$'WorldBegin\nPolygon "P" [0 0 1  1 0 1\n'
+
+# Garbage and a huge array: clean errors.
+python3 -c '
+import random, sys
+r = random.Random(7)
+sys.stdout.buffer.write(bytes(r.randrange(256) for _ in range(65536)))
+' >"$work/garbage.rib"
+run "garbage" "$relight" render -q "$work/garbage.rib"
+expect_no_crash
+expect_status 1
+
+finish
