@@ -225,6 +225,7 @@ struct render {
 	struct job *jobs;
 	size_t njobs, capjobs;
 	struct aov *aovs;
+	size_t capaov;
 	uint32_t naov, naov_planes;
 	struct reyes_texsys *tex;
 	struct reyes_shader default_surface;
@@ -1107,49 +1108,94 @@ static float expose(float c, float gain, float gamma)
 	return isfinite(c) ? c : 0;
 }
 
+static bool is_base_mode(const char *m, size_t n)
+{
+	static const char *const base[] = { "rgba", "rgb", "a", "z", "rgbaz" };
+	for (size_t k = 0; k < sizeof(base) / sizeof(base[0]); k++)
+		if (strlen(base[k]) == n && !strncmp(m, base[k], n))
+			return true;
+	return false;
+}
+
+static const struct aov *find_aov(const struct render *r, const char *name, size_t n)
+{
+	for (uint32_t q = 0; q < r->naov; q++)
+		if (strlen(r->aovs[q].name) == n && !strncmp(r->aovs[q].name, name, n))
+			return &r->aovs[q];
+	return NULL;
+}
+
+/*
+ * Channels of a display. The mode is a comma-separated list: rgba, rgb, a,
+ * z, rgbaz, or output variables (AOVs). A display of a single AOV names its
+ * channels R, G, B (Y for a float); with other channels beside it, an AOV's
+ * channels are NAME.R, NAME.G, NAME.B (NAME for a float).
+ */
 static bool write_display(struct render *r, const struct reyes_display *d)
 {
 	const struct reyes_options *o = &r->scene->opts;
 	uint32_t W = o->xres, H = o->yres;
-	const char *names[16];
-	int src[16];           /* -1..-4: R G B A, -5: Z, >= 0: aov plane */
+	const char *names[64];
+	char *owned[64];
+	uint32_t nowned = 0;
+	int src[64];           /* -1..-4: R G B A, -5: Z, >= 0: aov plane */
 	uint32_t nch = 0;
 	bool depth = !strcmp(d->type, "zfile") || !strcmp(d->type, "shadow") ||
 		     !strcmp(d->mode, "z");
+	bool single = !strchr(d->mode, ',');
 	if (depth) {
 		names[nch] = "Z";
 		src[nch++] = -5;
-	} else if (!strcmp(d->mode, "rgba") || !strcmp(d->mode, "rgb") || !strcmp(d->mode, "a") ||
-		   !strcmp(d->mode, "rgbaz")) {
-		static const char *const rgba[4] = { "R", "G", "B", "A" };
-		for (int c = 0; c < 4; c++) {
-			if (!strcmp(d->mode, "rgb") && c == 3)
-				continue;
-			if (!strcmp(d->mode, "a") && c != 3)
-				continue;
-			names[nch] = rgba[c];
-			src[nch++] = -1 - c;
+	}
+	for (const char *m = d->mode; !depth && *m;) {
+		const char *e = strchr(m, ',');
+		size_t n = e ? (size_t)(e - m) : strlen(m);
+		if (is_base_mode(m, n)) {
+			static const char *const rgba[4] = { "R", "G", "B", "A" };
+			/* rgba, rgb, a, z, rgbaz */
+			bool has_rgb = n >= 3 && !strncmp(m, "rgb", 3);
+			bool has_a = (n == 1 && m[0] == 'a') || (n >= 4 && !strncmp(m, "rgba", 4));
+			for (int c = 0; c < 4 && nch < 60; c++) {
+				if (c < 3 ? !has_rgb : !has_a)
+					continue;
+				names[nch] = rgba[c];
+				src[nch++] = -1 - c;
+			}
+			if (m[n - 1] == 'z' && nch < 63) {
+				names[nch] = "Z";
+				src[nch++] = -5;
+			}
+		} else {
+			const struct aov *av = find_aov(r, m, n);
+			if (!av)
+				return false;
+			static const char *const rgb[3] = { "R", "G", "B" };
+			for (int c = 0; c < av->ncomp && nch < 63; c++) {
+				if (single) {
+					names[nch] = av->ncomp == 1 ? "Y" : rgb[c];
+				} else {
+					size_t len = n + 3;
+					char *nm = malloc(len);
+					if (!nm)
+						return false;
+					if (av->ncomp == 1)
+						snprintf(nm, len, "%.*s", (int)n, m);
+					else
+						snprintf(nm, len, "%.*s.%s", (int)n, m, rgb[c]);
+					owned[nowned++] = nm;
+					names[nch] = nm;
+				}
+				src[nch++] = (int)av->offset + c;
+			}
 		}
-		if (!strcmp(d->mode, "rgbaz")) {
-			names[nch] = "Z";
-			src[nch++] = -5;
-		}
-	} else {
-		const struct aov *av = NULL;
-		for (uint32_t q = 0; q < r->naov; q++)
-			if (!strcmp(r->aovs[q].name, d->mode))
-				av = &r->aovs[q];
-		if (!av)
-			return false;
-		static const char *const rgb[3] = { "R", "G", "B" };
-		for (int c = 0; c < av->ncomp; c++) {
-			names[nch] = av->ncomp == 1 ? "Y" : rgb[c];
-			src[nch++] = (int)av->offset + c;
-		}
+		m = e ? e + 1 : m + n;
 	}
 	struct reyes_image im;
-	if (!reyes_image_init(&im, W, H, nch, names))
+	if (nch == 0 || !reyes_image_init(&im, W, H, nch, names)) {
+		for (uint32_t k = 0; k < nowned; k++)
+			free(owned[k]);
 		return false;
+	}
 	for (size_t p = 0; p < (size_t)W * H; p++)
 		for (uint32_t c = 0; c < nch; c++) {
 			float v;
@@ -1168,52 +1214,65 @@ static bool write_display(struct render *r, const struct reyes_display *d)
 	sl_m44_mul(im.world_to_ndc, r->cam.w2c, r->cam.c2ndc);
 	bool ok = reyes_image_write_exr(d->name, &im, !depth && d->half, r->diag);
 	reyes_image_finish(&im);
+	for (uint32_t k = 0; k < nowned; k++)
+		free(owned[k]);
 	return ok;
+}
+
+/* Add the AOV @m (@n characters): an output parameter or global of the surface shaders. */
+static bool add_aov(struct render *r, const struct reyes_display *d, const char *m, size_t n)
+{
+	char name[256];
+	snprintf(name, sizeof(name), "%.*s", (int)n, m);
+	int ncomp = 0;
+	for (uint32_t p = 0; p < r->scene->nprims && !ncomp; p++) {
+		const struct reyes_shader *s = r->scene->prims[p].attrs->surface;
+		if (!s)
+			continue;
+		int k = sl_program_find_param(s->prog, name);
+		if (k >= 0 && s->prog->params[k].output)
+			ncomp = sl_type_ncomp(s->prog->params[k].type.base);
+	}
+	for (int gl = 0; gl < SL_GLOBAL_COUNT && !ncomp; gl++)
+		if (!strcmp(sl_global_name((enum sl_global)gl), name))
+			ncomp = sl_type_ncomp(sl_global_type((enum sl_global)gl).base);
+	if (!ncomp || ncomp > 3) {
+		fprintf(r->diag,
+			"%s:%u: error: display \"%s\" asks for \"%s\", which no surface shader "
+			"outputs\n",
+			d->file ? d->file : "?", d->line, d->name, name);
+		return false;
+	}
+	if (r->naov == r->capaov)
+		r->aovs = rl_vec_grow_(r->aovs, &r->capaov, sizeof(*r->aovs), r->naov + 1);
+	char *copy = malloc(n + 1);
+	if (!copy)
+		return false;
+	memcpy(copy, m, n);
+	copy[n] = '\0';
+	r->aovs[r->naov].name = copy;
+	r->aovs[r->naov].ncomp = ncomp;
+	r->aovs[r->naov].offset = r->naov_planes;
+	r->naov_planes += (uint32_t)ncomp;
+	r->naov++;
+	return true;
 }
 
 /* The AOVs the displays ask for: output parameters or globals of the surface shaders. */
 static bool collect_aovs(struct render *r)
 {
 	const struct reyes_options *o = &r->scene->opts;
-	r->aovs = calloc(o->ndisplays + 1, sizeof(*r->aovs));
 	for (uint32_t i = 0; i < o->ndisplays; i++) {
 		const struct reyes_display *d = &o->displays[i];
 		if (!strcmp(d->type, "zfile") || !strcmp(d->type, "shadow"))
 			continue;
-		const char *m = d->mode;
-		if (!strcmp(m, "rgba") || !strcmp(m, "rgb") || !strcmp(m, "a") || !strcmp(m, "z") ||
-		    !strcmp(m, "rgbaz"))
-			continue;
-		bool dup = false;
-		for (uint32_t q = 0; q < r->naov; q++)
-			if (!strcmp(r->aovs[q].name, m))
-				dup = true;
-		if (dup)
-			continue;
-		int ncomp = 0;
-		for (uint32_t p = 0; p < r->scene->nprims && !ncomp; p++) {
-			const struct reyes_shader *s = r->scene->prims[p].attrs->surface;
-			if (!s)
-				continue;
-			int k = sl_program_find_param(s->prog, m);
-			if (k >= 0 && s->prog->params[k].output)
-				ncomp = sl_type_ncomp(s->prog->params[k].type.base);
+		for (const char *m = d->mode; *m;) {
+			const char *e = strchr(m, ',');
+			size_t n = e ? (size_t)(e - m) : strlen(m);
+			if (n && !is_base_mode(m, n) && !find_aov(r, m, n) && !add_aov(r, d, m, n))
+				return false;
+			m = e ? e + 1 : m + n;
 		}
-		for (int gl = 0; gl < SL_GLOBAL_COUNT && !ncomp; gl++)
-			if (!strcmp(sl_global_name((enum sl_global)gl), m))
-				ncomp = sl_type_ncomp(sl_global_type((enum sl_global)gl).base);
-		if (!ncomp || ncomp > 3) {
-			fprintf(r->diag,
-				"%s:%u: error: display \"%s\" asks for \"%s\", which no surface shader "
-				"outputs\n",
-				d->file ? d->file : "?", d->line, d->name, m);
-			return false;
-		}
-		r->aovs[r->naov].name = m;
-		r->aovs[r->naov].ncomp = ncomp;
-		r->aovs[r->naov].offset = r->naov_planes;
-		r->naov_planes += (uint32_t)ncomp;
-		r->naov++;
 	}
 	return true;
 }
@@ -1423,6 +1482,8 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	free(r.ctx);
 	free(r.todo);
 	free(r.jobs);
+	for (uint32_t q = 0; q < r.naov; q++)
+		free((char *)r.aovs[q].name);
 	free(r.aovs);
 	free(r.light_mats);
 	free(r.rgba);

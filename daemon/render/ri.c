@@ -900,15 +900,44 @@ static void req_display(struct ri *ri, const struct rib_request *r)
 		if (strcmp(mode, modes[i]) == 0)
 			m = modes[i];
 	if (!m) {
-		/* An output variable, perhaps with its type: "color diffuse". */
-		const char *last = mode + strlen(mode);
-		while (last > mode && !isspace((unsigned char)last[-1]))
-			last--;
-		if (!is_identifier(last))
-			FAIL(ri, r->loc,
-				   "Display: bad mode '%s' (rgba, rgb, a, z, rgbaz or an output "
-				   "variable's name)", mode);
-		m = rl_arena_strdup(ri->perm, last);
+		/*
+		 * A comma-separated list of those and output variables, each
+		 * perhaps with its type: "rgba,color diffuse,N". Kept as the
+		 * names alone: "rgba,diffuse,N".
+		 */
+		struct rl_strbuf list = {0};
+		for (const char *t = mode;;) {
+			const char *e = strchr(t, ',');
+			size_t n = e ? (size_t)(e - t) : strlen(t);
+			while (n && isspace((unsigned char)t[n - 1]))
+				n--;
+			const char *last = t + n;
+			while (last > t && !isspace((unsigned char)last[-1]))
+				last--;
+			char word[256];
+			size_t wl = (size_t)(t + n - last);
+			bool known = false;
+			if (wl > 0 && wl < sizeof(word)) {
+				memcpy(word, last, wl);
+				word[wl] = '\0';
+				for (size_t i = 0; i < sizeof(modes) / sizeof(modes[0]); i++)
+					known = known || strcmp(word, modes[i]) == 0;
+			}
+			if (!wl || wl >= sizeof(word) || (!known && !is_identifier(word))) {
+				rl_strbuf_finish(&list);
+				FAIL(ri, r->loc,
+				     "Display: bad mode '%s' (rgba, rgb, a, z, rgbaz or output "
+				     "variables' names, separated by commas)", mode);
+			}
+			if (list.len)
+				rl_strbuf_putc(&list, ',');
+			rl_strbuf_puts(&list, word);
+			if (!e)
+				break;
+			t = e + 1;
+		}
+		m = rl_arena_strdup(ri->perm, rl_strbuf_str(&list));
+		rl_strbuf_finish(&list);
 	}
 	if (depth)
 		m = "z";

@@ -352,6 +352,149 @@ static void test_mirror_one_sided(void)
 	CHECK_NEAR(lit[1], lit[0], 0.01 * lit[0]);
 }
 
+/*
+ * MakeTexture and texture() through a render: a 32x32 texture whose red
+ * channel is s at each texel centre ((i + 0.5) / 32), mapped by "st" onto a
+ * square that fills a 32x32 image exactly, so each pixel looks up its own
+ * texel: the red channel equals the pixel's s within 1% (filtering a linear
+ * ramp symmetrically keeps its value), green is t, and blue the constant 0.25.
+ * Jitter is off: jittered samples would average the ramp at random places in
+ * the pixel (about 0.1 pixel off its centre), which is sampling noise, not
+ * texture filtering; samples at stratum centres average it exactly.
+ */
+static void test_texture_lookup(void)
+{
+	const char *names[3] = { "R", "G", "B" };
+	struct reyes_image tex;
+	CHECK(reyes_image_init(&tex, 32, 32, 3, names));
+	for (uint32_t y = 0; y < 32; y++)
+		for (uint32_t x = 0; x < 32; x++) {
+			float *p = &tex.data[(y * 32 + x) * 3];
+			p[0] = (x + 0.5f) / 32;
+			p[1] = (y + 0.5f) / 32;
+			p[2] = 0.25f;
+		}
+	CHECK(reyes_image_write_exr(tmp_path("ramp.exr"), &tex, false, NULL));
+	reyes_image_finish(&tex);
+	FILE *f = fopen(tmp_path("texcolor.sl"), "w");
+	CHECK(f != NULL);
+	if (!f)
+		return;
+	fputs("surface texcolor(string texturename = \"\") {\n"
+	      "\tOi = 1;\n\tCi = color texture(texturename);\n}\n", f);
+	fclose(f);
+	const char *rib =
+		"Option \"searchpath\" \"shader\" [\".:@\"]\n"
+		"MakeTexture \"ramp.exr\" \"ramp.tex\" \"clamp\" \"clamp\" \"box\" 1 1\n"
+		"Format 32 32 1\n"
+		"PixelSamples 2 2\n"
+		"PixelFilter \"box\" 1 1\n"
+		"Hider \"hidden\" \"jitter\" 0\n"
+		"Projection \"orthographic\"\n"
+		"ScreenWindow -1 1 -1 1\n"
+		"Display \"tex.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+		"WorldBegin\n"
+		"  Surface \"texcolor\" \"texturename\" \"ramp.tex\"\n"
+		"  ShadingInterpolation \"smooth\"\n"
+		"  Translate 0 0 5\n"
+		"  Polygon \"P\" [-1 1 0  1 1 0  1 -1 0  -1 -1 0]\n"
+		"          \"st\" [0 0  1 0  1 1  0 1]\n"
+		"WorldEnd\n";
+	struct reyes_image im = { 0 };
+	CHECK(render(rib, "tex.exr", &im));
+	if (!im.data)
+		return;
+	int r = channel(&im, "R"), g = channel(&im, "G"), b = channel(&im, "B");
+	double worst = 0;
+	for (uint32_t y = 2; y < 30; y++)
+		for (uint32_t x = 2; x < 30; x++) {
+			double ws = (x + 0.5) / 32, wt = (y + 0.5) / 32;
+			worst = fmax(worst, fabs(px(&im, r, x, y) - ws) / ws);
+			worst = fmax(worst, fabs(px(&im, g, x, y) - wt) / wt);
+			CHECK_NEAR(px(&im, b, x, y), 0.25, 0.0025);
+		}
+	printf("texture: worst relative error %.4f%% (tolerance 1%%)\n", worst * 100);
+	CHECK(worst <= 0.01);
+	reyes_image_finish(&im);
+}
+
+/*
+ * Shadow maps through a render: a shadowspot above the plane y = 0, a 1x1
+ * square occluder at height 1 between them. Frame 1 renders depth from the
+ * light, MakeShadow makes the map, frame 2 looks straight down at the plane.
+ * The umbra (the occluder's projection from the light) must be black; points
+ * well outside it must match a render without the occluder within 2% (no
+ * self-shadowing of the lit plane).
+ */
+static void test_shadow_map(void)
+{
+	float lit_sum[2] = { 0, 0 };
+	double umbra = 0;
+	for (int occluded = 0; occluded < 2; occluded++) {
+		char rib[4096];
+		const char *occluder = occluded ? "  Polygon \"P\" [-0.5 1 -0.5  -0.5 1 0.5  0.5 1 0.5  0.5 1 -0.5]\n" : "";
+		snprintf(rib, sizeof(rib),
+			 "FrameBegin 1\n"
+			 "  Format 256 256 1\n"
+			 "  PixelSamples 1 1\n"
+			 "  PixelFilter \"box\" 1 1\n"
+			 "  Hider \"hidden\" \"depthfilter\" \"midpoint\"\n"
+			 "  Projection \"perspective\" \"fov\" 90\n"
+			 "  Display \"light.z\" \"zfile\" \"z\"\n"
+			 "  Rotate -90 1 0 0\n"
+			 "  Translate 0 -3 0\n"
+			 "  WorldBegin\n"
+			 "    Surface \"constant\"\n"
+			 "    Polygon \"P\" [-6 0 -6  -6 0 6  6 0 6  6 0 -6]\n"
+			 "%s"
+			 "  WorldEnd\n"
+			 "FrameEnd\n"
+			 "MakeShadow \"light.z\" \"light.shd\"\n"
+			 "FrameBegin 2\n"
+			 "  Format 64 64 1\n"
+			 "  PixelSamples 2 2\n"
+			 "  PixelFilter \"box\" 1 1\n"
+			 "  Projection \"orthographic\"\n"
+			 "  ScreenWindow -4 4 -4 4\n"
+			 "  Display \"shadowed.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+			 "  Rotate -90 1 0 0\n"
+			 "  Translate 0 -10 0\n"
+			 "  WorldBegin\n"
+			 "    LightSource \"shadowspot\" 1 \"intensity\" 9 \"from\" [0 3 0] \"to\" [0 0 0]\n"
+			 "        \"coneangle\" 1.2 \"conedeltaangle\" 0.05 \"shadowname\" \"%s\"\n"
+			 "        \"samples\" 16\n"
+			 "    Surface \"matte\" \"Ka\" 0\n"
+			 "    Polygon \"P\" [-6 0 -6  -6 0 6  6 0 6  6 0 -6]\n"
+			 "  WorldEnd\n"
+			 "FrameEnd\n",
+			 occluder, occluded ? "light.shd" : "");
+		struct reyes_image im = { 0 };
+		CHECK(render(rib, "shadowed.exr", &im));
+		if (!im.data)
+			return;
+		int r = channel(&im, "R");
+		/* Plane point (X, Z) seen at pixel x = (X + 4) * 8, y = (Z + 4) * 8 (Z down
+		 * the image: the camera looks down -y with its up along +z). The umbra: a
+		 * square of half-size 0.5 * 3 / 2 = 0.75 around the origin. */
+		for (uint32_t y = 0; y < 64; y++)
+			for (uint32_t x = 0; x < 64; x++) {
+				double X = (x + 0.5) / 8 - 4, Z = 4 - (y + 0.5) / 8;
+				double v = px(&im, r, x, y);
+				if (fabs(X) < 0.6 && fabs(Z) < 0.6 && occluded)
+					umbra = fmax(umbra, v);
+				/* outside the penumbra margin, inside the cone */
+				if ((fabs(X) > 1.0 || fabs(Z) > 1.0) && X * X + Z * Z < 4)
+					lit_sum[occluded] += (float)v;
+			}
+		reyes_image_finish(&im);
+	}
+	printf("shadow: brightest umbra pixel %.4f, lit region %.3f vs %.3f unshadowed\n", umbra,
+	       lit_sum[1], lit_sum[0]);
+	CHECK(lit_sum[0] > 10);
+	CHECK(umbra < 0.02);
+	CHECK_NEAR(lit_sum[1], lit_sum[0], 0.02 * lit_sum[0]);
+}
+
 int main(void)
 {
 	snprintf(tmpdir, sizeof(tmpdir), "/tmp/relight-render-XXXXXX");
@@ -364,6 +507,9 @@ int main(void)
 	RUN(test_motion_coverage);
 	RUN(test_transparency_order);
 	RUN(test_mirror_one_sided);
+	RUN(test_texture_lookup);
+	RUN(test_shadow_map);
+	if (getenv("RELIGHT_KEEP_TMP")) return test_finish();
 	char cmd[600];
 	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", tmpdir);
 	if (system(cmd) != 0)
