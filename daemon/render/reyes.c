@@ -1369,10 +1369,23 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	for (uint32_t i = 0; i < scene->nlights; i++)
 		sl_m44_mul(r.light_mats[i], scene->lights[i].shader.shader_to_world, r.cam.w2c);
 
+	/*
+	 * A frame whose displays are all depth maps is a shadow pass: objects
+	 * that cast no shadows (Attribute "visibility" "transmission" 0) stay
+	 * out of it.
+	 */
+	bool shadow_pass = so->ndisplays > 0;
+	for (uint32_t i = 0; i < so->ndisplays; i++)
+		if (strcmp(so->displays[i].type, "zfile") && strcmp(so->displays[i].type, "shadow") &&
+		    strcmp(so->displays[i].mode, "z"))
+			shadow_pass = false;
+
 	/* pieces -> jobs */
 	struct reyes_patch *pieces = NULL;
 	size_t np = 0, capp = 0;
 	for (uint32_t p = 0; ok && p < scene->nprims; p++) {
+		if (shadow_pass && !scene->prims[p].attrs->casts_shadows)
+			continue;
 		np = 0;
 		if (!reyes_prim_pieces(&scene->prims[p], &pieces, &np, &capp))
 			continue;

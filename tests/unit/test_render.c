@@ -428,11 +428,16 @@ static void test_texture_lookup(void)
  */
 static void test_shadow_map(void)
 {
-	float lit_sum[2] = { 0, 0 };
-	double umbra = 0;
-	for (int occluded = 0; occluded < 2; occluded++) {
+	float lit_sum[3] = { 0, 0, 0 };
+	double umbra = 0, umbra_nocast = 0;
+	/* 0: no occluder, 1: an occluder, 2: an occluder that casts no shadow */
+	for (int occluded = 0; occluded < 3; occluded++) {
 		char rib[4096];
-		const char *occluder = occluded ? "  Polygon \"P\" [-0.5 1 -0.5  -0.5 1 0.5  0.5 1 0.5  0.5 1 -0.5]\n" : "";
+		const char *occluder =
+			occluded == 1 ? "  Polygon \"P\" [-0.5 1 -0.5  -0.5 1 0.5  0.5 1 0.5  0.5 1 -0.5]\n" :
+			occluded == 2 ? "  Attribute \"visibility\" \"transmission\" 0\n"
+					"  Polygon \"P\" [-0.5 1 -0.5  -0.5 1 0.5  0.5 1 0.5  0.5 1 -0.5]\n" :
+					"";
 		snprintf(rib, sizeof(rib),
 			 "FrameBegin 1\n"
 			 "  Format 256 256 1\n"
@@ -480,8 +485,10 @@ static void test_shadow_map(void)
 			for (uint32_t x = 0; x < 64; x++) {
 				double X = (x + 0.5) / 8 - 4, Z = 4 - (y + 0.5) / 8;
 				double v = px(&im, r, x, y);
-				if (fabs(X) < 0.6 && fabs(Z) < 0.6 && occluded)
+				if (fabs(X) < 0.6 && fabs(Z) < 0.6 && occluded == 1)
 					umbra = fmax(umbra, v);
+				if (fabs(X) < 0.6 && fabs(Z) < 0.6 && occluded == 2)
+					umbra_nocast = fmax(umbra_nocast, v);
 				/* outside the penumbra margin, inside the cone */
 				if ((fabs(X) > 1.0 || fabs(Z) > 1.0) && X * X + Z * Z < 4)
 					lit_sum[occluded] += (float)v;
@@ -493,6 +500,9 @@ static void test_shadow_map(void)
 	CHECK(lit_sum[0] > 10);
 	CHECK(umbra < 0.02);
 	CHECK_NEAR(lit_sum[1], lit_sum[0], 0.02 * lit_sum[0]);
+	/* an occluder that casts no shadow leaves the plane lit under it */
+	printf("shadow: under an occluder that casts no shadow %.4f\n", umbra_nocast);
+	CHECK(umbra_nocast > 0.5);
 }
 
 int main(void)

@@ -1,0 +1,416 @@
+/*
+ * Internals of the RIB scene builder, shared by ri.c (diagnostics, request
+ * arguments, options, the graphics state, transformations, blocks, shaders,
+ * archives, frames and the dispatch of requests) and ri_prims.c (type
+ * declarations, the geometric primitives and their primitive variables,
+ * Basis, motion blocks, retained objects): the builder's state and the
+ * functions each file offers the other.
+ */
+#ifndef REYES_RI_IMPL_H
+#define REYES_RI_IMPL_H
+
+#include "ri.h"
+
+#include "arena.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+/* ---- a string-keyed hash map ------------------------------------------------ */
+
+struct strmap_slot {
+	const char *key;      /* owned by an arena that outlives the entry */
+	uintptr_t val;
+};
+
+struct strmap {
+	struct strmap_slot *slots;
+	size_t cap, len;
+};
+
+static inline uint64_t hash_str(const char *s)
+{
+	uint64_t h = 1469598103934665603u;
+	for (; *s; s++) {
+		h ^= (unsigned char)*s;
+		h *= 1099511628211u;
+	}
+	return h;
+}
+
+static inline struct strmap_slot *strmap_slot(const struct strmap *m, const char *key)
+{
+	size_t mask = m->cap - 1;
+	for (size_t i = (size_t)hash_str(key) & mask;; i = (i + 1) & mask) {
+		struct strmap_slot *s = &m->slots[i];
+		if (!s->key || strcmp(s->key, key) == 0)
+			return s;
+	}
+}
+
+static inline bool strmap_get(const struct strmap *m, const char *key, uintptr_t *val)
+{
+	if (!m->cap)
+		return false;
+	const struct strmap_slot *s = strmap_slot(m, key);
+	if (!s->key)
+		return false;
+	*val = s->val;
+	return true;
+}
+
+static inline void strmap_put(struct strmap *m, const char *key, uintptr_t val)
+{
+	if ((m->len + 1) * 2 > m->cap) {
+		struct strmap old = *m;
+		m->cap = old.cap ? old.cap * 2 : 16;
+		m->slots = rl_xcalloc(m->cap, sizeof(*m->slots));
+		m->len = 0;
+		for (size_t i = 0; i < old.cap; i++)
+			if (old.slots[i].key) {
+				*strmap_slot(m, old.slots[i].key) = old.slots[i];
+				m->len++;
+			}
+		free(old.slots);
+	}
+	struct strmap_slot *s = strmap_slot(m, key);
+	if (!s->key) {
+		s->key = key;
+		m->len++;
+	}
+	s->val = val;
+}
+
+static inline void strmap_free(struct strmap *m)
+{
+	free(m->slots);
+	*m = (struct strmap){0};
+}
+
+/* ---- the builder's state ------------------------------------------------------ */
+
+/* A type from a declaration: "[class] type ['[' n ']'] [name]". */
+struct decl {
+	enum reyes_class cls;
+	int type;              /* enum sl_basetype; integer is float, hpoint is point */
+	bool hpoint;           /* four components, divided by w on the way in */
+	uint32_t arraylen;     /* 0: not an array */
+	const char *name;      /* inline declarations only */
+};
+
+/* The current transformation at shutter open and close. */
+struct xform {
+	float m[2][16];
+	bool moving;
+};
+
+/* The attributes of the graphics state (the transformation aside). */
+struct attrstate {
+	float Cs[3], Os[3];
+	const struct reyes_shader *surface, *displacement;
+	const uint32_t *lights;         /* indices of the lights that are on, ascending */
+	uint32_t nlights;
+	int sides;
+	/* The orientation differs from the coordinate system's handedness. */
+	bool inside;
+	float shading_rate;
+	bool smooth;
+	const char *identifier;
+	float dbound;
+	const char *dbound_space;
+	bool casts_shadows;
+	float ubasis[16], vbasis[16];
+	uint32_t ustep, vstep;
+};
+
+struct gstate {
+	struct attrstate a;
+	struct xform x;
+	/* The bundle for a and x, made when a primitive first needs it. */
+	const struct reyes_attrs *bundle;
+	/*
+	 * a.lights when nothing else refers to it (no bundle, no saved block),
+	 * so that it may change in place; it has room for lights_cap entries.
+	 * Otherwise NULL, and a change makes a copy.
+	 */
+	uint32_t *own_lights;
+	uint32_t lights_cap;
+};
+
+struct optstate {
+	struct reyes_options o;        /* displays: an immutable array in perm */
+	bool projection_given;
+	bool quantize_float;           /* Quantize "rgba" 0 ...: float images */
+};
+
+enum blk { BLK_FRAME, BLK_WORLD, BLK_ATTRIBUTE, BLK_TRANSFORM, BLK_MOTION, BLK_OBJECT };
+
+struct block {
+	enum blk kind;
+	struct rib_loc loc;      /* file name interned */
+	uint32_t file_depth;     /* which file (archive nesting) opened it */
+	struct gstate gs;        /* what to restore */
+	struct optstate opt;     /* BLK_FRAME */
+};
+
+enum motion_kind { MOTION_NONE, MOTION_XFORM, MOTION_PRIM };
+
+struct motion {
+	bool active;
+	bool bad;                 /* the block was rejected: its samples are skipped */
+	struct rib_loc loc;
+	float times[2];
+	uint32_t ntimes, nsamples;
+	const char *request;      /* the first sample's request */
+	enum motion_kind kind;
+	bool set;                 /* transform samples replace the transformation */
+	float xf[2][16];
+	struct reyes_prim *prim[2];
+};
+
+struct obj_prim {
+	struct reyes_prim *p;     /* attrs NULL: given at each instance */
+	float rel[2][16];         /* the primitive's transformation relative to ObjectBegin's */
+	bool identity;
+};
+
+struct object {
+	RL_VEC(struct obj_prim) prims;
+};
+
+struct space {
+	const char *name;
+	float m[16];              /* that space to world (before WorldBegin: to camera) */
+};
+
+/* A file being read: the top-level file or an archive. */
+struct file {
+	const char *path;
+	const char *raw_name;     /* the reader's name pointer, valid while it reads */
+	const char *name;         /* interned */
+	struct stat st;
+	bool have_st;
+	struct rib_loc last;      /* the last request seen */
+};
+
+struct ri {
+	const struct reyes_ri_opts *opts;
+	FILE *diag;               /* where diagnostics end up */
+	int max_errors;
+	int nerrors;              /* the builder's own, plus frames the callback refused */
+	int reader_errors;
+	int frame_errors;         /* in the frame being built */
+	bool stop;
+
+	/* The reader's diagnostics pass through a memory stream, so that its
+	   errors can hold back the frame they occur in. */
+	FILE *rdiag;
+	char *rbuf;
+	size_t rlen;
+
+	struct rl_arena *perm;
+	struct strmap decls;              /* name -> struct decl * */
+	struct strmap shader_cache;       /* path -> struct sl_program * (NULL: failed) */
+	RL_VEC(struct sl_program *) progs;
+	const char *default_shader_path;
+	const char *default_texture_path;
+
+	struct optstate opt;
+	struct gstate gs;
+	RL_VEC(struct block) blocks;
+	RL_VEC(struct file) files;
+	uint32_t archive_reads;
+
+	/* before WorldBegin: named spaces relative to camera */
+	RL_VEC(struct space) pre_spaces;
+	struct strmap pre_space_index;    /* name -> index + 1 */
+
+	/* objects: those defined outside a world first, then the world's */
+	RL_VEC(struct object) objects;
+	size_t outer_objects;
+	struct strmap outer_object_index; /* handle -> index + 1 */
+	struct strmap world_object_index;
+	int objdef;                       /* the object being defined, or -1 */
+	float objdef_inv[2][16];
+
+	struct motion motion;
+
+	/* the world */
+	struct rl_arena *world;
+	float w2c_inv[16];
+	bool w2c_mirror;                  /* the camera transformation flips handedness */
+	RL_VEC(struct reyes_light) lights;
+	struct strmap light_index;        /* handle -> index + 1 */
+	RL_VEC(struct reyes_prim) prims;
+	RL_VEC(struct space) spaces;
+	struct strmap space_index;
+};
+
+/* ---- ri.c: diagnostics ------------------------------------------------------------- */
+
+/**
+ * Report "FILE:LINE: error: MESSAGE" at @loc (after the reader's pending
+ * messages). It counts against the read and holds back the frame being
+ * built; the read stops when the errors reach opts->max_errors.
+ */
+void reyes_ri_err(struct ri *ri, struct rib_loc loc, const char *fmt, ...)
+	__attribute__((format(printf, 3, 4)));
+
+/** Report "FILE:LINE: warning: MESSAGE" at @loc; warnings count nothing. */
+void reyes_ri_warn(struct ri *ri, struct rib_loc loc, const char *fmt, ...)
+	__attribute__((format(printf, 3, 4)));
+
+/* Reports an error and leaves the (void) request handler. */
+#define FAIL(...) \
+	do { \
+		reyes_ri_err(__VA_ARGS__); \
+		return; \
+	} while (0)
+
+/** @loc with its file name interned in ri->perm (the reader's name dies with its read). */
+struct rib_loc reyes_ri_keep_loc(struct ri *ri, struct rib_loc loc);
+
+/** "line 9", or "FILE:9" when @at is in another file than @from; made in ri->perm. */
+const char *reyes_ri_where(struct ri *ri, struct rib_loc at, struct rib_loc from);
+
+/* ---- ri.c: arguments ----------------------------------------------------------------- */
+
+/** Argument @i of @r as one number; false (reported) when it is not one. */
+bool reyes_ri_num_arg(struct ri *ri, const struct rib_request *r, uint32_t i, double *out);
+
+/** Argument @i of @r as one string (owned by @r); false (reported) when it is not one. */
+bool reyes_ri_str_arg(struct ri *ri, const struct rib_request *r, uint32_t i, const char **out);
+
+/**
+ * Arguments first..first+n-1 of @r as floats into @out; false (reported)
+ * when one is missing, not a number or beyond the float range.
+ */
+bool reyes_ri_float_args(struct ri *ri, const struct rib_request *r, uint32_t first, uint32_t n,
+			 float *out);
+
+/** Argument @i of @r, a handle (integer or string), as a string in @a; NULL (reported) if not. */
+const char *reyes_ri_handle_arg(struct ri *ri, const struct rib_request *r, uint32_t i,
+				struct rl_arena *a);
+
+/**
+ * The v->n numbers of @v as floats into @out; false (reported at @loc,
+ * naming @what) when one is beyond the float range.
+ */
+bool reyes_ri_value_floats(struct ri *ri, const struct rib_value *v, struct rib_loc loc,
+			   const char *what, float *out);
+
+/** Does @v hold numbers (one or an array)? */
+bool reyes_ri_is_numbers(const struct rib_value *v);
+
+/* ---- ri.c: the graphics state, transformations and blocks --------------------------- */
+
+/** Is @m exactly the identity? */
+bool reyes_ri_is_identity(const float m[16]);
+
+/** Where what is made now lives: the world's arena inside a world, else ri->perm. */
+struct rl_arena *reyes_ri_cur_arena(struct ri *ri);
+
+/** Set the current transformation at shutter open (@m0) and close (@m1). */
+void reyes_ri_set_xform(struct ri *ri, const float m0[16], const float m1[16]);
+
+/**
+ * A new bundle (in the world's arena) of the current attributes with
+ * transformation @x. It shares the current light set.
+ */
+const struct reyes_attrs *reyes_ri_make_bundle(struct ri *ri, const struct xform *x);
+
+/** The bundle of the current attributes and transformation, made once until they change. */
+const struct reyes_attrs *reyes_ri_cur_bundle(struct ri *ri);
+
+/** May one more block open? False (reported) when blocks are nested too deeply. */
+bool reyes_ri_depth_ok(struct ri *ri, const struct rib_request *r);
+
+/** Open a block of @kind at @r, saving the graphics state and options it restores. */
+void reyes_ri_push_block(struct ri *ri, const struct rib_request *r, enum blk kind);
+
+/**
+ * The end of a block of @kind: it must close the innermost open block,
+ * opened in the same file. Pops it and returns true, or reports and
+ * returns false.
+ */
+bool reyes_ri_close_block(struct ri *ri, const struct rib_request *r, enum blk kind);
+
+/** The innermost open block of @kind, or NULL. */
+const struct block *reyes_ri_find_block(const struct ri *ri, enum blk kind);
+
+/* ---- ri_prims.c: declarations ------------------------------------------------------ */
+
+/**
+ * A parameter's name (in the current arena) and, if its token has one,
+ * its inline declaration into @d (*has_decl then true). False (reported,
+ * naming request @req) for an empty name or a malformed declaration.
+ */
+bool reyes_ri_param_token(struct ri *ri, const struct rib_param *par, const char *req,
+			  struct decl *d, bool *has_decl, const char **name);
+
+/* ---- ri_prims.c: requests, in ri.c's dispatch table -------------------------------- */
+
+/** Declare NAME DECLARATION: the type of a parameter or primitive variable. */
+void reyes_ri_req_declare(struct ri *ri, const struct rib_request *r);
+
+/** Sphere, Cylinder, Cone, Disk, Hyperboloid, Paraboloid and Torus. */
+void reyes_ri_req_quadric(struct ri *ri, const struct rib_request *r);
+
+/** Polygon: one convex polygon. */
+void reyes_ri_req_polygon(struct ri *ri, const struct rib_request *r);
+
+/** GeneralPolygon: one polygon with holes. */
+void reyes_ri_req_general_polygon(struct ri *ri, const struct rib_request *r);
+
+/** PointsPolygons and PointsGeneralPolygons: polygons sharing vertices. */
+void reyes_ri_req_points_polygons(struct ri *ri, const struct rib_request *r);
+
+/** Patch: one bilinear or bicubic patch. */
+void reyes_ri_req_patch(struct ri *ri, const struct rib_request *r);
+
+/** PatchMesh: a mesh of bilinear or bicubic patches, each direction periodic or not. */
+void reyes_ri_req_patch_mesh(struct ri *ri, const struct rib_request *r);
+
+/** Basis: the bicubic bases and steps of the patches that follow (an attribute). */
+void reyes_ri_req_basis(struct ri *ri, const struct rib_request *r);
+
+/** MotionBegin: opens a motion block of one or two sample times. */
+void reyes_ri_req_motion_begin(struct ri *ri, const struct rib_request *r);
+
+/** MotionEnd: closes the motion block (see reyes_ri_motion_end). */
+void reyes_ri_req_motion_end(struct ri *ri, const struct rib_request *r);
+
+/** ObjectBegin: starts defining a retained object, outside or inside a world. */
+void reyes_ri_req_object_begin(struct ri *ri, const struct rib_request *r);
+
+/** ObjectEnd: closes the object definition. */
+void reyes_ri_req_object_end(struct ri *ri, const struct rib_request *r);
+
+/** ObjectInstance: the object's primitives under the current attributes and transformation. */
+void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r);
+
+/* ---- ri_prims.c: motion blocks and object definitions, for ri.c's own requests ------ */
+
+/**
+ * A transformation request @r inside a motion block: its matrix @x is the
+ * next sample; @set: it replaces the current transformation (else it is
+ * applied before it).
+ */
+void reyes_ri_motion_xform(struct ri *ri, const struct rib_request *r, const float x[16],
+			   bool set);
+
+/**
+ * The motion block closes (or unwinds): with @apply, and when its samples
+ * are complete and agree, its transformation samples apply to the current
+ * transformation, or its deforming primitive is added.
+ */
+void reyes_ri_motion_end(struct ri *ri, bool apply);
+
+/** The object definition closes (or unwinds). */
+void reyes_ri_object_end(struct ri *ri);
+
+#endif
