@@ -1,0 +1,62 @@
+/*
+ * GLSL generation: the IR of a shader (or the part of it a specialization
+ * keeps) as a GLSL 4.30 compute shader running one shading sample per
+ * invocation, with the scene's light shaders translated whole. Parameters
+ * are uniforms, so an edit never recompiles: only structure is in the
+ * source.
+ */
+#ifndef SL_GLSL_H
+#define SL_GLSL_H
+
+#include "ir.h"
+
+#include <stdio.h>
+
+/** The part of a program to emit, and where its data comes from. */
+struct sl_slice {
+	const struct sl_program *prog;
+	/* Per instruction: 1 to emit it. NULL: every instruction. Block openers
+	 * and closers of emitted instructions are kept by the caller. */
+	const uint8_t *keep;
+	/* Registers read per sample from the input buffer (cached values and
+	 * the globals the kept code reads), in this order. */
+	const int32_t *inputs;
+	uint32_t ninputs;
+	/* Registers written per sample to the output buffer, in this order. */
+	const int32_t *outputs;
+	uint32_t noutputs;
+};
+
+/** Where each input and output lives in the buffers, in floats. */
+struct sl_glsl_layout {
+	uint32_t in_stride;    /* floats per sample in the input buffer */
+	uint32_t out_stride;   /* floats per sample in the output buffer */
+	uint32_t *in_offset;   /* per input: its first float (components consecutive) */
+	uint32_t *out_offset;  /* per output */
+	/* String constants and string parameters become token ids (floats):
+	 * strings[id] is the string of token id. */
+	const char **strings;
+	uint32_t nstrings;
+};
+
+/**
+ * Emit a compute shader for @s with @nlights light shaders (their count and
+ * order are fixed in the source; each light's parameters are uniforms
+ * "l<k>_NAME" and its "shader" space is the uniform mat4 "l<k>_shader",
+ * shader -> current). The slice's own parameters that are not inputs are
+ * uniforms "p_NAME"; a coordinate system named in the code is the uniform
+ * mat4 "space_NAME" (NAME -> current). Inputs come from samplerBuffer u_in
+ * (texture unit 0) at sample * in_stride; outputs go to the SSBO at binding 1
+ * at sample * out_stride; the sample index is as gpu.h's gpu_dispatch()
+ * describes, and the uniform int u_count bounds it.
+ * Every built-in the code uses is emitted with the interpreter's numerics.
+ * Returns the source (free() it) and fills @layout (free with
+ * sl_glsl_layout_finish), or NULL with "FILE:LINE:COL: error: ..." on @diag
+ * for what the GPU cannot run (textures, derivatives of dynamic values...).
+ */
+char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lights,
+		   uint32_t nlights, struct sl_glsl_layout *layout, FILE *diag);
+
+void sl_glsl_layout_finish(struct sl_glsl_layout *layout);
+
+#endif
