@@ -5,6 +5,7 @@
 #include "cmd.h"
 #include "config.h"
 #include "sl.h"
+#include "spec.h"
 
 #include <errno.h>
 #include <getopt.h>
@@ -15,7 +16,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-enum emit_mode { EMIT_NONE, EMIT_AST, EMIT_IR, EMIT_REPORT };
+enum emit_mode { EMIT_NONE, EMIT_AST, EMIT_IR, EMIT_REPORT, EMIT_CACHE };
 
 static void usage(FILE *out)
 {
@@ -32,7 +33,15 @@ static void usage(FILE *out)
 		"                                  only: types are not checked)\n"
 		"                          ir      the typed IR, one instruction a line\n"
 		"                          report  JSON: name, type, parameters and\n"
+		"                                  instruction counts; for a surface shader\n"
+		"                                  also its specialization: dynamic_params,\n"
+		"                                  cached_channels, cached_scalars,\n"
+		"                                  cache_required, static/dynamic/dead\n"
 		"                                  instruction counts\n"
+		"                          cache   the caching program of a surface shader\n"
+		"                                  (its static part, as IR)\n"
+		"  --dynamic P1,P2,...   Surface parameters a user may edit: specialize with\n"
+		"                        them dynamic as well as the lights\n"
 		"  -I DIR, --include DIR\n"
 		"                        Search DIR for #include files (after the including\n"
 		"                        file's own directory); may be repeated\n"
@@ -163,6 +172,9 @@ static int write_output(const char *out_path, const char *data, size_t len)
 /* The parsed command line. The strings point into argv. */
 struct compile_args {
 	enum emit_mode emit;
+	const char **dyn;           /* --dynamic names */
+	size_t ndyn;
+	char *dyn_buf;
 	const char *out_path;
 	const char *input;
 	const char **incs, **defs;
@@ -177,6 +189,7 @@ static int parse_args(int argc, char **argv, struct compile_args *args)
 		{ "include", required_argument, NULL, 'I' },
 		{ "define", required_argument, NULL, 'D' },
 		{ "output", required_argument, NULL, 'o' },
+		{ "dynamic", required_argument, NULL, 'y' },
 		{ "help", no_argument, NULL, 'h' },
 		{ NULL, 0, NULL, 0 },
 	};
@@ -196,10 +209,27 @@ static int parse_args(int argc, char **argv, struct compile_args *args)
 				args->emit = EMIT_IR;
 			else if (strcmp(optarg, "report") == 0)
 				args->emit = EMIT_REPORT;
+			else if (strcmp(optarg, "cache") == 0)
+				args->emit = EMIT_CACHE;
 			else
-				return usage_error("unknown --emit kind '%s' (expected ast, ir or "
-						   "report)", optarg);
+				return usage_error("unknown --emit kind '%s' (expected ast, ir, "
+						   "report or cache)", optarg);
 			break;
+		case 'y': {
+			/* a comma-separated list of parameter names */
+			free(args->dyn_buf);
+			free(args->dyn);
+			args->dyn_buf = strdup(optarg);
+			args->dyn = calloc(strlen(optarg) + 2, sizeof(char *));
+			args->ndyn = 0;
+			if (!args->dyn_buf || !args->dyn)
+				return usage_error("out of memory");
+			for (char *t = strtok(args->dyn_buf, ","); t; t = strtok(NULL, ","))
+				args->dyn[args->ndyn++] = t;
+			if (args->ndyn == 0)
+				return usage_error("--dynamic needs parameter names, e.g. Kd,roughness");
+			break;
+		}
 		case 'I':
 			if (!*optarg)
 				return usage_error("-I needs a directory");
@@ -234,6 +264,41 @@ static int parse_args(int argc, char **argv, struct compile_args *args)
 		return usage_error("-o needs --emit (there is nothing to write otherwise)");
 	args->input = argv[optind];
 	return -1;
+}
+
+/* The report (with the specialization of a surface shader) or the caching program. */
+static bool emit_specialized(const struct sl_program *prog, const struct compile_args *args,
+			     FILE *mem)
+{
+	if (sl_program_kind(prog) != SL_SHADER_SURFACE) {
+		if (args->emit == EMIT_CACHE || args->ndyn) {
+			fprintf(stderr, "relight compile: %s is a %s shader; only surface shaders "
+				"are specialized (light shaders run whole on the GPU)\n",
+				args->input, sl_shader_kind_name(sl_program_kind(prog)));
+			return false;
+		}
+		sl_emit_report(prog, NULL, mem);
+		return true;
+	}
+	struct sl_spec *s = sl_specialize(prog, args->dyn, args->ndyn, stderr);
+	if (!s)
+		return false;
+	for (uint32_t k = 0; k < s->ncache_required; k++) {
+		const struct sl_insn *in = &prog->code[s->cache_required[k]];
+		fprintf(stderr, "%s:%u:%u: warning: this light-dependent value cannot be computed "
+			"on the GPU; it is cached at bake time\n",
+			in->loc.file < prog->nfiles ? prog->files[in->loc.file] : "?", in->loc.line,
+			in->loc.col);
+	}
+	if (args->emit == EMIT_CACHE) {
+		sl_ir_dump(s->caching, mem);
+	} else if (args->emit == EMIT_REPORT) {
+		char *fields = sl_spec_report_fields(s, args->dyn, args->ndyn, -1);
+		sl_emit_report(prog, fields, mem);
+		free(fields);
+	}
+	sl_spec_destroy(s);
+	return true;
 }
 
 /* Compile (or parse, for --emit ast) and print or write the result. */
@@ -277,8 +342,9 @@ static int run(const struct compile_args *args)
 		ok = prog != NULL;
 		if (prog && args->emit == EMIT_IR)
 			sl_emit(prog, SL_EMIT_IR, mem);
-		else if (prog && args->emit == EMIT_REPORT)
-			sl_emit(prog, SL_EMIT_REPORT, mem);
+		else if (prog && (args->emit == EMIT_REPORT || args->emit == EMIT_CACHE ||
+				  args->ndyn))
+			ok = emit_specialized(prog, args, mem);
 		sl_program_destroy(prog);
 	}
 	fclose(mem);
@@ -308,5 +374,7 @@ int cmd_compile(int argc, char **argv)
 		status = run(&args);
 	free(args.incs);
 	free(args.defs);
+	free(args.dyn);
+	free(args.dyn_buf);
 	return status;
 }

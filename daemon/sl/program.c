@@ -272,12 +272,14 @@ static void json_float(struct rl_strbuf *b, float v)
 
 void sl_emit(const struct sl_program *prog, enum sl_emit_kind kind, FILE *out)
 {
-	if (kind == SL_EMIT_IR) {
+	if (kind == SL_EMIT_IR)
 		sl_ir_dump(prog, out);
-		return;
-	}
-	if (kind != SL_EMIT_REPORT)
-		return;
+	else if (kind == SL_EMIT_REPORT)
+		sl_emit_report(prog, NULL, out);
+}
+
+void sl_emit_report(const struct sl_program *prog, const char *extra, FILE *out)
+{
 	struct rl_strbuf b = { 0 };
 	rl_strbuf_puts(&b, "{\n  \"name\": ");
 	rl_strbuf_json_string(&b, prog->name);
@@ -341,9 +343,9 @@ void sl_emit(const struct sl_program *prog, enum sl_emit_kind kind, FILE *out)
 	rl_strbuf_printf(&b,
 			 "],\n  \"instructions\": {\"total\": %u, \"varying\": %u, \"uniform\": %u, "
 			 "\"calls\": %u, \"control\": %u},\n  \"registers\": {\"total\": %u, "
-			 "\"varying\": %u}\n}\n",
+			 "\"varying\": %u}%s%s\n}\n",
 			 total, varying, total - varying - control, calls, control, prog->nregs,
-			 nvarying_regs);
+			 nvarying_regs, extra ? ",\n  " : "", extra ? extra : "");
 	fputs(rl_strbuf_str(&b), out);
 	rl_strbuf_finish(&b);
 }

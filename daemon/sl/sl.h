@@ -65,6 +65,12 @@ bool sl_emit_ast_file(const char *path, const struct sl_options *opts, FILE *out
 /** Print @prog's IR or JSON report to @out. */
 void sl_emit(const struct sl_program *prog, enum sl_emit_kind kind, FILE *out);
 
+/**
+ * The JSON report, with @extra (JSON object members, e.g. "\"a\": 1, \"b\": 2",
+ * or NULL) added at its end.
+ */
+void sl_emit_report(const struct sl_program *prog, const char *extra, FILE *out);
+
 /** The shader's name and kind. */
 const char *sl_program_name(const struct sl_program *prog);
 enum sl_shader_kind sl_program_kind(const struct sl_program *prog);

@@ -1,2 +1,634 @@
-/* being written */
+/*
+ * Specialization by dependence analysis (lightspeed-2007 §3.1).
+ *
+ * Dynamic: a register is dynamic if a dynamic instruction writes it; an
+ * instruction is dynamic if it reads a dynamic register, calls a built-in
+ * that reads the lights, or writes a variable under dynamic control (inside
+ * an illuminance statement, or an if/loop whose condition is dynamic, or a
+ * block some points leave early under dynamic control). Temporaries that are
+ * written once are exempt from the control rule: whether they are computed
+ * depends on the branch, but not their value, so the caching program can
+ * compute them on both sides of a dynamic branch.
+ *
+ * Live: an instruction is live if it writes a register that reaches an
+ * output (Ci, Oi, output parameters) or has a side effect; a block is live
+ * if anything in it is, and then its condition is too.
+ *
+ * Both are fixpoints over the structured IR, flow-insensitive per register
+ * (conservative where a variable is reused for unrelated values).
+ */
 #include "spec.h"
+#include "builtin.h"
+#include "../common/strbuf.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+static bool is_opener(int op)
+{
+	return op == SL_OP_IF || op == SL_OP_LOOP || op == SL_OP_FUNC || op == SL_OP_ILLUMINANCE ||
+	       op == SL_OP_ILLUMINATE || op == SL_OP_SOLAR;
+}
+
+static bool is_closer(int op)
+{
+	return op == SL_OP_ENDIF || op == SL_OP_LOOPEND || op == SL_OP_FUNCEND ||
+	       op == SL_OP_ILLUMINANCE_END || op == SL_OP_ILLUMINATE_END || op == SL_OP_SOLAR_END;
+}
+
+static bool is_control(int op)
+{
+	return op >= SL_OP_IF;
+}
+
+/* Argument k of a call is an output (written, not read). */
+static bool arg_is_output(const struct sl_insn *in, int k)
+{
+	if (in->op != SL_OP_CALL || in->bi < 0)
+		return false;
+	const struct sl_builtin *b = &sl_builtins[in->bi];
+	const char *sig = strchr(b->sig, ':') + 1;
+	int pos = 0;
+	for (const char *p = sig; *p && *p != '*'; p++) {
+		bool out = false;
+		if ((b->flags & SL_BIF_TEXNAME) && pos == 1) {
+			/* the channel argument is not in the signature */
+			pos++;
+			if (pos > k)
+				return false;
+		}
+		if (*p == '&') {
+			out = true;
+			p++;
+		}
+		if (pos == k)
+			return out;
+		pos++;
+	}
+	return false;
+}
+
+/* Built-ins the GPU cannot run: their values are computed at bake time. */
+static bool gpu_cannot(const struct sl_program *prog, const struct sl_insn *in)
+{
+	if (in->op != SL_OP_CALL || in->bi < 0)
+		return false;
+	const struct sl_builtin *b = &sl_builtins[in->bi];
+	switch (b->id) {
+	case SL_BI_DU: case SL_BI_DV: case SL_BI_DERIV: case SL_BI_AREA:
+	case SL_BI_CALCULATENORMAL: case SL_BI_FILTERSTEP: case SL_BI_RANDOM:
+	case SL_BI_FORMAT: case SL_BI_CONCAT: case SL_BI_MATCH: case SL_BI_TEXTUREINFO:
+	case SL_BI_ATTRIBUTE: case SL_BI_OPTION: case SL_BI_RENDERERINFO:
+		return true;
+	case SL_BI_TEXTURE: case SL_BI_ENVIRONMENT: case SL_BI_SHADOW: {
+		/* only the empty name (no map) runs on the GPU */
+		const struct sl_reg *r = &prog->regs[in->args[0]];
+		return !(r->kind == SL_REG_CONST && prog->strings[r->cindex][0] == '\0');
+	}
+	default:
+		return false;
+	}
+}
+
+struct ctl {
+	int32_t at;
+	bool dynamic;
+};
+
+struct state {
+	const struct sl_program *prog;
+	struct sl_spec *s;
+	uint32_t *writes;        /* per register: instructions writing it */
+	uint8_t *block_dyn;      /* per opener */
+	RL_VEC(struct ctl) stack;
+	bool changed;
+	FILE *diag;
+};
+
+static bool ctl_dyn(const struct state *st)
+{
+	return st->stack.len && st->stack.data[st->stack.len - 1].dynamic;
+}
+
+static void push(struct state *st, int32_t at, bool dyn)
+{
+	struct ctl c = { at, dyn || ctl_dyn(st) || st->block_dyn[at] };
+	rl_vec_push(st->stack, c);
+}
+
+static void set_block(struct state *st, int32_t at)
+{
+	if (!st->block_dyn[at]) {
+		st->block_dyn[at] = 1;
+		st->changed = true;
+	}
+}
+
+static void set_reg(struct state *st, int32_t r)
+{
+	if (r >= 0 && !st->s->reg_dynamic[r]) {
+		st->s->reg_dynamic[r] = 1;
+		st->changed = true;
+	}
+}
+
+/* One forward pass of the dynamic fixpoint. */
+static void dyn_pass(struct state *st)
+{
+	const struct sl_program *p = st->prog;
+	struct sl_spec *s = st->s;
+	st->stack.len = 0;
+	for (uint32_t i = 0; i < p->ncode; i++) {
+		const struct sl_insn *in = &p->code[i];
+		int32_t at = (int32_t)i;
+		switch (in->op) {
+		case SL_OP_IF:
+			if (s->reg_dynamic[in->args[0]])
+				s->dynamic[i] = 1;
+			push(st, at, s->reg_dynamic[in->args[0]]);
+			continue;
+		case SL_OP_LOOP:
+		case SL_OP_FUNC:
+			push(st, at, false);
+			continue;
+		case SL_OP_ILLUMINANCE:
+			/* which lights reach a point, and L, Cl, Ol: all light-dependent */
+			s->dynamic[i] = 1;
+			push(st, at, true);
+			continue;
+		case SL_OP_ILLUMINATE:
+		case SL_OP_SOLAR:
+			push(st, at, true);
+			continue;
+		case SL_OP_LOOPTEST:
+			if (s->reg_dynamic[in->args[0]] && in->jump[0] >= 0) {
+				set_block(st, in->jump[0]);
+				if (st->stack.len)
+					st->stack.data[st->stack.len - 1].dynamic = true;
+			}
+			continue;
+		case SL_OP_BREAK:
+		case SL_OP_CONTINUE:
+			if (ctl_dyn(st)) {
+				int levels = in->imm > 0 ? in->imm : 1;
+				for (size_t k = st->stack.len; k-- > 0 && levels > 0;) {
+					int op = p->code[st->stack.data[k].at].op;
+					if (op == SL_OP_LOOP || op == SL_OP_ILLUMINANCE) {
+						set_block(st, st->stack.data[k].at);
+						levels--;
+					}
+				}
+			}
+			continue;
+		case SL_OP_RETURN:
+			if (ctl_dyn(st))
+				for (size_t k = st->stack.len; k-- > 0;) {
+					set_block(st, st->stack.data[k].at);
+					if (p->code[st->stack.data[k].at].op == SL_OP_FUNC)
+						break;
+				}
+			continue;
+		default:
+			if (is_closer(in->op)) {
+				if (st->stack.len)
+					st->stack.len--;
+				continue;
+			}
+			if (is_control(in->op))
+				continue;
+			break;
+		}
+		bool dyn = false;
+		for (int k = 0; k < in->nargs; k++)
+			if (!arg_is_output(in, k) && s->reg_dynamic[in->args[k]])
+				dyn = true;
+		if (in->op == SL_OP_SETCOMP || in->op == SL_OP_ASET)
+			dyn = dyn || s->reg_dynamic[in->dst];
+		if (in->op == SL_OP_CALL && in->bi >= 0) {
+			const struct sl_builtin *b = &sl_builtins[in->bi];
+			if ((b->flags & SL_BIF_LIGHTS) || b->id == SL_BI_LIGHTSOURCE)
+				dyn = true;
+		}
+		/* the control rule, for registers that merge values */
+		if (ctl_dyn(st)) {
+			if (in->dst >= 0 &&
+			    (p->regs[in->dst].kind != SL_REG_TEMP || st->writes[in->dst] > 1))
+				dyn = true;
+			for (int k = 0; k < in->nargs; k++)
+				if (arg_is_output(in, k))
+					dyn = true;
+		}
+		if (dyn && gpu_cannot(p, in)) {
+			/* computed at bake time anyway: stays static */
+			dyn = false;
+		}
+		if (dyn && !s->dynamic[i]) {
+			s->dynamic[i] = 1;
+			st->changed = true;
+		}
+		if (s->dynamic[i]) {
+			set_reg(st, in->dst);
+			for (int k = 0; k < in->nargs; k++)
+				if (arg_is_output(in, k))
+					set_reg(st, in->args[k]);
+		}
+	}
+}
+
+/* Backward liveness: live registers and instructions, blocks included. */
+static void liveness(struct state *st, uint8_t *reg_live)
+{
+	const struct sl_program *p = st->prog;
+	struct sl_spec *s = st->s;
+	bool changed = true;
+	while (changed) {
+		changed = false;
+		for (uint32_t i = p->ncode; i-- > 0;) {
+			const struct sl_insn *in = &p->code[i];
+			bool live = s->live[i];
+			if (!live && !is_control(in->op)) {
+				if (in->dst >= 0 && reg_live[in->dst])
+					live = true;
+				for (int k = 0; k < in->nargs; k++)
+					if (arg_is_output(in, k) && reg_live[in->args[k]])
+						live = true;
+				if (in->op == SL_OP_CALL && in->bi >= 0 &&
+				    (sl_builtins[in->bi].flags & SL_BIF_SIDE_EFFECT))
+					live = true;
+			}
+			if (live && !s->live[i]) {
+				s->live[i] = 1;
+				changed = true;
+			}
+			if (!s->live[i])
+				continue;
+			for (int k = 0; k < in->nargs; k++)
+				if (!arg_is_output(in, k) && !reg_live[in->args[k]]) {
+					reg_live[in->args[k]] = 1;
+					changed = true;
+				}
+			if ((in->op == SL_OP_SETCOMP || in->op == SL_OP_ASET) && !reg_live[in->dst]) {
+				reg_live[in->dst] = 1;
+				changed = true;
+			}
+		}
+		/* blocks with anything live inside are live, with their parts */
+		for (uint32_t i = 0; i < p->ncode; i++) {
+			const struct sl_insn *in = &p->code[i];
+			if (!is_opener(in->op) || s->live[i])
+				continue;
+			int32_t end = in->op == SL_OP_IF || in->op == SL_OP_LOOP ? in->jump[1] : in->jump[0];
+			if (end < 0)
+				continue;
+			for (int32_t k = (int32_t)i + 1; k < end; k++)
+				if (s->live[k] && !is_control(p->code[k].op)) {
+					for (int32_t j = (int32_t)i; j <= end; j++) {
+						const struct sl_insn *c = &p->code[j];
+						/* the block's own structure and the jumps out of it */
+						if (is_control(c->op) && !s->live[j]) {
+							s->live[j] = 1;
+							changed = true;
+						}
+					}
+					break;
+				}
+		}
+		for (uint32_t i = 0; i < p->ncode; i++) {
+			const struct sl_insn *in = &p->code[i];
+			if (s->live[i] && (in->op == SL_OP_IF || in->op == SL_OP_LOOPTEST ||
+					   in->op == SL_OP_ILLUMINANCE))
+				for (int k = 0; k < in->nargs; k++)
+					if (!reg_live[in->args[k]]) {
+						reg_live[in->args[k]] = 1;
+						changed = true;
+					}
+		}
+	}
+}
+
+/* Keep the structure around kept instructions: openers, middles, closers. */
+static void keep_structure(const struct sl_program *p, uint8_t *keep, const uint8_t *want)
+{
+	for (uint32_t i = 0; i < p->ncode; i++) {
+		const struct sl_insn *in = &p->code[i];
+		if (!is_opener(in->op))
+			continue;
+		int32_t end = in->op == SL_OP_IF || in->op == SL_OP_LOOP ? in->jump[1] : in->jump[0];
+		if (end < 0)
+			continue;
+		bool any = false;
+		for (int32_t k = (int32_t)i + 1; k < end && !any; k++)
+			any = keep[k] && !is_control(p->code[k].op);
+		if (!any)
+			continue;
+		for (int32_t j = (int32_t)i; j <= end; j++)
+			if (is_control(p->code[j].op) && (!want || want[j]))
+				keep[j] = 1;
+	}
+}
+
+/*
+ * The caching program: @prog's parameter code and its live static
+ * instructions; structure kept where its condition is static, dropped (so
+ * both sides run) where it is dynamic.
+ */
+static struct sl_program *make_caching(const struct sl_program *prog, const struct sl_spec *s)
+{
+	uint8_t *keep = rl_xcalloc(prog->ncode + 1, 1);
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		const struct sl_insn *in = &prog->code[i];
+		if (i < prog->body_begin)
+			keep[i] = 1; /* parameter defaults */
+		else if (!is_control(in->op))
+			keep[i] = s->live[i] && !s->dynamic[i];
+	}
+	/* structure with a static condition whose body keeps something */
+	uint8_t *want = rl_xcalloc(prog->ncode + 1, 1);
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		const struct sl_insn *in = &prog->code[i];
+		if (!is_opener(in->op))
+			continue;
+		bool dyn_block = in->op == SL_OP_ILLUMINANCE || in->op == SL_OP_ILLUMINATE ||
+				 in->op == SL_OP_SOLAR || s->dynamic[i];
+		int32_t end = in->op == SL_OP_IF || in->op == SL_OP_LOOP ? in->jump[1] : in->jump[0];
+		if (in->op == SL_OP_LOOP && in->jump[0] >= 0 &&
+		    s->reg_dynamic[prog->code[in->jump[0]].args[0]])
+			dyn_block = true;
+		if (end < 0 || dyn_block)
+			continue;
+		for (int32_t j = (int32_t)i; j <= end; j++)
+			want[j] = 1;
+	}
+	/* breaks/continues/returns inside a dynamic block go with it */
+	keep_structure(prog, keep, want);
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		int op = prog->code[i].op;
+		if ((op == SL_OP_BREAK || op == SL_OP_CONTINUE || op == SL_OP_RETURN) && !want[i])
+			keep[i] = 0;
+	}
+	free(want);
+
+	struct rl_arena *arena = rl_arena_create();
+	struct sl_program *c = rl_arena_alloc(arena, sizeof(*c));
+	*c = *prog;
+	c->arena = arena;
+	int32_t *map = rl_xcalloc(prog->ncode + 1, sizeof(int32_t));
+	uint32_t n = 0;
+	for (uint32_t i = 0; i < prog->ncode; i++)
+		map[i] = keep[i] ? (int32_t)n++ : -1;
+	map[prog->ncode] = (int32_t)n;
+	c->code = rl_arena_alloc(arena, sizeof(struct sl_insn) * (n + 1));
+	c->ncode = n;
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		if (!keep[i])
+			continue;
+		struct sl_insn in = prog->code[i];
+		for (int k = 0; k < 2; k++)
+			if (in.jump[k] >= 0) {
+				/* a jump to a dropped ELSE lands on the ENDIF */
+				int32_t t = in.jump[k];
+				while (t < (int32_t)prog->ncode && map[t] < 0)
+					t = prog->code[t].op == SL_OP_ELSE ? prog->code[t].jump[1] : t + 1;
+				in.jump[k] = map[t < (int32_t)prog->ncode ? t : (int32_t)prog->ncode];
+			}
+		c->code[map[i]] = in;
+	}
+	c->body_begin = (uint32_t)map[prog->body_begin < prog->ncode ? prog->body_begin : prog->ncode];
+	c->params = rl_arena_alloc(arena, sizeof(struct sl_param) * (prog->nparams + 1));
+	for (uint32_t k = 0; k < prog->nparams; k++) {
+		c->params[k] = prog->params[k];
+		c->params[k].init_begin = (uint32_t)map[prog->params[k].init_begin];
+		c->params[k].init_end = (uint32_t)map[prog->params[k].init_end];
+	}
+	free(map);
+	free(keep);
+	return c;
+}
+
+static void add_unique(int32_t **v, uint32_t *n, int32_t r)
+{
+	for (uint32_t i = 0; i < *n; i++)
+		if ((*v)[i] == r)
+			return;
+	(*v)[(*n)++] = r;
+}
+
+struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *dynamic_params,
+			      size_t ndynamic, FILE *diag)
+{
+	if (!diag)
+		diag = stderr;
+	if (prog->kind != SL_SHADER_SURFACE) {
+		fprintf(diag, "%s: error: only surface shaders are specialized (light shaders are "
+			"translated whole)\n", prog->source_path ? prog->source_path : prog->name);
+		return NULL;
+	}
+	struct sl_spec *s = rl_xcalloc(1, sizeof(*s));
+	s->prog = prog;
+	s->dynamic = rl_xcalloc(prog->ncode + 1, 1);
+	s->live = rl_xcalloc(prog->ncode + 1, 1);
+	s->reg_dynamic = rl_xcalloc(prog->nregs + 1, 1);
+	bool ok = true;
+	for (size_t i = 0; i < ndynamic; i++) {
+		int k = sl_program_find_param(prog, dynamic_params[i]);
+		if (k < 0) {
+			fprintf(diag, "%s: error: shader '%s' has no parameter '%s'\n",
+				prog->source_path ? prog->source_path : prog->name, prog->name,
+				dynamic_params[i]);
+			ok = false;
+			continue;
+		}
+		s->reg_dynamic[prog->params[k].reg] = 1;
+	}
+	if (!ok) {
+		sl_spec_destroy(s);
+		return NULL;
+	}
+	static const enum sl_global light_globals[] = { SL_GLOBAL_L, SL_GLOBAL_CL, SL_GLOBAL_OL };
+	for (size_t g = 0; g < 3; g++)
+		if (prog->global_reg[light_globals[g]] >= 0)
+			s->reg_dynamic[prog->global_reg[light_globals[g]]] = 1;
+
+	struct state st = { .prog = prog, .s = s, .diag = diag };
+	st.writes = rl_xcalloc(prog->nregs + 1, sizeof(uint32_t));
+	st.block_dyn = rl_xcalloc(prog->ncode + 1, 1);
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		const struct sl_insn *in = &prog->code[i];
+		if (in->dst >= 0)
+			st.writes[in->dst]++;
+		for (int k = 0; k < in->nargs; k++)
+			if (arg_is_output(in, k))
+				st.writes[in->args[k]]++;
+	}
+	/* Parameter defaults of dynamic parameters are not part of the analysis:
+	 * the parameter's register is dynamic from the start. */
+	do {
+		st.changed = false;
+		dyn_pass(&st);
+	} while (st.changed);
+
+	/* Liveness from the outputs. */
+	uint8_t *reg_live = rl_xcalloc(prog->nregs + 1, 1);
+	int32_t ci = prog->global_reg[SL_GLOBAL_CI], oi = prog->global_reg[SL_GLOBAL_OI];
+	if (ci >= 0)
+		reg_live[ci] = 1;
+	if (oi >= 0)
+		reg_live[oi] = 1;
+	for (uint32_t k = 0; k < prog->nparams; k++)
+		if (prog->params[k].output)
+			reg_live[prog->params[k].reg] = 1;
+	liveness(&st, reg_live);
+
+	/* Cache-required: light-dependent operations the GPU cannot run. */
+	s->cache_required = rl_xcalloc(prog->ncode + 1, sizeof(uint32_t));
+	for (uint32_t i = prog->body_begin; i < prog->ncode; i++) {
+		const struct sl_insn *in = &prog->code[i];
+		if (!s->live[i] || !gpu_cannot(prog, in))
+			continue;
+		bool dyn_input = false;
+		for (int k = 0; k < in->nargs; k++)
+			if (!arg_is_output(in, k) && s->reg_dynamic[in->args[k]])
+				dyn_input = true;
+		if (dyn_input)
+			s->cache_required[s->ncache_required++] = i;
+	}
+
+	/* The dynamic slice. */
+	s->keep = rl_xcalloc(prog->ncode + 1, 1);
+	for (uint32_t i = prog->body_begin; i < prog->ncode; i++)
+		if (!is_control(prog->code[i].op))
+			s->keep[i] = s->live[i] && s->dynamic[i];
+	keep_structure(prog, s->keep, NULL);
+	for (uint32_t i = prog->body_begin; i < prog->ncode; i++) {
+		int op = prog->code[i].op;
+		if ((op == SL_OP_BREAK || op == SL_OP_CONTINUE || op == SL_OP_RETURN) && s->live[i])
+			s->keep[i] = 1;
+	}
+	/* A kept break/continue/return needs its blocks. */
+	keep_structure(prog, s->keep, NULL);
+
+	s->cached = rl_xcalloc(prog->nregs + 1, sizeof(int32_t));
+	s->outputs = rl_xcalloc(prog->nregs + 1, sizeof(int32_t));
+	uint32_t nout = 0;
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		if (!s->keep[i])
+			continue;
+		const struct sl_insn *in = &prog->code[i];
+		for (int k = 0; k < in->nargs; k++) {
+			int32_t r = in->args[k];
+			const struct sl_reg *reg = &prog->regs[r];
+			if (arg_is_output(in, k) || s->reg_dynamic[r] || reg->kind == SL_REG_CONST)
+				continue;
+			/* uniform parameters the body never writes stay uniforms */
+			if (reg->kind == SL_REG_PARAM && !reg->varying && st.writes[r] <= 1)
+				continue;
+			add_unique(&s->cached, &s->ncached, r);
+		}
+		if ((in->op == SL_OP_SETCOMP || in->op == SL_OP_ASET) && !s->reg_dynamic[in->dst] &&
+		    prog->regs[in->dst].kind != SL_REG_CONST)
+			add_unique(&s->cached, &s->ncached, in->dst);
+	}
+	/* Outputs: Ci and Oi always (static ones pass their cached value through),
+	 * dynamic output parameters. */
+	if (ci >= 0) {
+		s->outputs[nout++] = ci;
+		if (!s->reg_dynamic[ci])
+			add_unique(&s->cached, &s->ncached, ci);
+	}
+	if (oi >= 0) {
+		s->outputs[nout++] = oi;
+		if (!s->reg_dynamic[oi])
+			add_unique(&s->cached, &s->ncached, oi);
+	}
+	for (uint32_t k = 0; k < prog->nparams; k++)
+		if (prog->params[k].output && s->reg_dynamic[prog->params[k].reg])
+			s->outputs[nout++] = prog->params[k].reg;
+
+	for (uint32_t i = prog->body_begin; i < prog->ncode; i++) {
+		if (is_control(prog->code[i].op))
+			continue;
+		if (!s->live[i])
+			s->ndead++;
+		else if (s->dynamic[i])
+			s->ndynamic++;
+		else
+			s->nstatic++;
+	}
+	s->slice.prog = prog;
+	s->slice.keep = s->keep;
+	s->slice.inputs = s->cached;
+	s->slice.ninputs = s->ncached;
+	s->slice.outputs = s->outputs;
+	s->slice.noutputs = nout;
+	s->caching = make_caching(prog, s);
+
+	free(reg_live);
+	free(st.writes);
+	free(st.block_dyn);
+	rl_vec_free(st.stack);
+	return s;
+}
+
+void sl_spec_destroy(struct sl_spec *s)
+{
+	if (!s)
+		return;
+	free(s->dynamic);
+	free(s->live);
+	free(s->reg_dynamic);
+	free(s->cached);
+	free(s->cache_required);
+	free(s->keep);
+	free(s->outputs);
+	if (s->caching)
+		rl_arena_destroy(s->caching->arena);
+	free(s);
+}
+
+char *sl_spec_report_fields(const struct sl_spec *s, const char *const *dynamic_params,
+			    size_t ndynamic, long glsl_lines)
+{
+	const struct sl_program *p = s->prog;
+	struct rl_strbuf b = { 0 };
+	rl_strbuf_puts(&b, "\"dynamic_params\": [");
+	for (size_t i = 0; i < ndynamic; i++) {
+		if (i)
+			rl_strbuf_puts(&b, ", ");
+		rl_strbuf_json_string(&b, dynamic_params[i]);
+	}
+	rl_strbuf_puts(&b, "],\n  \"cached_channels\": [");
+	uint32_t scalars = 0;
+	for (uint32_t k = 0; k < s->ncached; k++) {
+		const struct sl_reg *r = &p->regs[s->cached[k]];
+		int comps = sl_reg_ncomp(r) * (r->arraylen ? r->arraylen : 1);
+		scalars += (uint32_t)comps;
+		rl_strbuf_printf(&b, "%s\n    {\"name\": ", k ? "," : "");
+		if (r->name)
+			rl_strbuf_json_string(&b, r->name);
+		else
+			rl_strbuf_printf(&b, "\"t%d\"", s->cached[k]);
+		rl_strbuf_printf(&b, ", \"type\": \"%s\", \"components\": %d}",
+				 sl_basetype_name(r->type), comps);
+	}
+	rl_strbuf_printf(&b, "\n  ],\n  \"cached_scalars\": %u,\n  \"cache_required\": [", scalars);
+	for (uint32_t k = 0; k < s->ncache_required; k++) {
+		const struct sl_insn *in = &p->code[s->cache_required[k]];
+		const char *file = in->loc.file < p->nfiles ? p->files[in->loc.file] : "?";
+		rl_strbuf_printf(&b, "%s{\"builtin\": \"%s\", \"location\": ", k ? ", " : "",
+				 in->bi >= 0 ? sl_builtins[in->bi].name : "?");
+		char loc[512];
+		snprintf(loc, sizeof(loc), "%s:%u:%u", file, in->loc.line, in->loc.col);
+		rl_strbuf_json_string(&b, loc);
+		rl_strbuf_putc(&b, '}');
+	}
+	rl_strbuf_printf(&b, "],\n  \"static_instructions\": %u,\n  \"dynamic_instructions\": %u,"
+			 "\n  \"dead_instructions\": %u,\n  \"glsl_lines\": ",
+			 s->nstatic, s->ndynamic, s->ndead);
+	if (glsl_lines >= 0)
+		rl_strbuf_printf(&b, "%ld", glsl_lines);
+	else
+		rl_strbuf_puts(&b, "null");
+	char *out = rl_xstrdup(rl_strbuf_str(&b));
+	rl_strbuf_finish(&b);
+	return out;
+}

@@ -45,4 +45,13 @@ struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *
 			      size_t ndynamic, FILE *diag);
 void sl_spec_destroy(struct sl_spec *s);
 
+/**
+ * JSON object members describing the specialization (for relight compile's
+ * report): dynamic_params, cached_channels (name, type, components),
+ * cached_scalars, cache_required, static/dynamic/dead instruction counts and
+ * glsl_lines (null when @glsl_lines < 0). free() the result.
+ */
+char *sl_spec_report_fields(const struct sl_spec *s, const char *const *dynamic_params,
+			    size_t ndynamic, long glsl_lines);
+
 #endif
