@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# `relight compile --dynamic ... --emit report|cache`: the specialization of
+# surface shaders, and its errors.
+source "$(dirname "$0")/lib.sh"
+
+run "report of plastic, lights dynamic" "$relight" compile --emit report plastic
+expect_status 0
+checks=$((checks + 1))
+python3 - "$work/stdout" <<'PY' || fail "report fields"
+import json, sys
+d = json.load(open(sys.argv[1]))
+for k in ("dynamic_params", "cached_channels", "cached_scalars", "cache_required",
+          "static_instructions", "dynamic_instructions", "dead_instructions", "glsl_lines"):
+    assert k in d, k
+assert d["dynamic_params"] == []
+assert d["cached_scalars"] == sum(c["components"] for c in d["cached_channels"])
+assert d["dynamic_instructions"] > 0
+PY
+
+run "report with --dynamic" "$relight" compile --emit report --dynamic Kd,roughness plastic
+expect_status 0
+checks=$((checks + 1))
+python3 -c '
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["dynamic_params"] == ["Kd", "roughness"], d["dynamic_params"]
+' "$work/stdout" || fail "dynamic_params"
+
+run "caching program" "$relight" compile --emit cache plastic
+expect_status 0
+expect_stdout "call +normalize"
+checks=$((checks + 1))
+grep -q "call *specular\|call *diffuse" "$work/stdout" && fail "lighting in the caching program"
+
+run "unknown dynamic parameter" "$relight" compile --dynamic nosuch plastic
+expect_status 1
+expect_stderr "has no parameter 'nosuch'"
+
+run "light shader" "$relight" compile --emit cache spotlight
+expect_status 1
+expect_stderr "only surface shaders are specialized"
+
+run "empty --dynamic" "$relight" compile --dynamic , plastic
+expect_status 2
+
+finish
