@@ -27,7 +27,6 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
-#include <pthread.h>
 #include <signal.h>
 #include <spawn.h>
 #include <stdarg.h>
@@ -213,60 +212,14 @@ static bool is_current(const struct gpu_ctx *ctx, const char *fn)
 /* ---- EGL displays ---- */
 
 /*
- * eglInitialize on a display that is already initialized succeeds without
- * counting, and one eglTerminate ends it for everyone: two contexts on the
- * same display (the surfaceless display is a per-process singleton) must
- * not terminate it under each other.
+ * Displays are never terminated once they serve a context. An EGLDisplay is
+ * one per platform and device for the whole process, shared with every other
+ * EGL user in it, and eglTerminate is not reference-counted (glvnd offers no
+ * EGL_KHR_display_reference): terminating ours would pull the display from
+ * under them. Keeping it also spares the next gpu_create a reload of the
+ * driver; it goes when the process exits. A display that this module
+ * initialized and then could not use is terminated at once.
  */
-struct display_ref {
-	EGLDisplay display;
-	unsigned refs;
-	struct display_ref *next;
-};
-
-static pthread_mutex_t displays_lock = PTHREAD_MUTEX_INITIALIZER;
-static struct display_ref *displays;
-
-static bool display_ref(EGLDisplay d)
-{
-	bool ok = true;
-	pthread_mutex_lock(&displays_lock);
-	struct display_ref *r = displays;
-	while (r && r->display != d)
-		r = r->next;
-	if (r) {
-		r->refs++;
-	} else if ((r = calloc(1, sizeof(*r))) != NULL) {
-		r->display = d;
-		r->refs = 1;
-		r->next = displays;
-		displays = r;
-	} else {
-		ok = false;
-	}
-	pthread_mutex_unlock(&displays_lock);
-	return ok;
-}
-
-static void display_unref(EGLDisplay d)
-{
-	bool last = false;
-	pthread_mutex_lock(&displays_lock);
-	for (struct display_ref **pr = &displays; *pr; pr = &(*pr)->next) {
-		struct display_ref *r = *pr;
-		if (r->display != d)
-			continue;
-		if (--r->refs == 0) {
-			*pr = r->next;
-			free(r);
-			last = true;
-		}
-		break;
-	}
-	if (last)
-		eglTerminate(d);
-	pthread_mutex_unlock(&displays_lock);
-}
 
 static bool is_software_renderer(const char *r)
 {
@@ -332,14 +285,12 @@ static bool try_display(struct gpu_ctx *ctx, EGLDisplay d, const char *label, ch
 		add_reason(err, errlen, "%s: no display (%s)", label, egl_error_name(eglGetError()));
 		return false;
 	}
+	/* Only an initialized display answers EGL_VENDOR. */
+	bool was_initialized = eglQueryString(d, EGL_VENDOR) != NULL;
 	EGLint major = 0, minor = 0;
 	if (!eglInitialize(d, &major, &minor)) {
 		add_reason(err, errlen, "%s: eglInitialize failed (%s)", label,
 			   egl_error_name(eglGetError()));
-		return false;
-	}
-	if (!display_ref(d)) {
-		add_reason(err, errlen, "%s: out of memory", label);
 		return false;
 	}
 	const char *ext = eglQueryString(d, EGL_EXTENSIONS);
@@ -407,7 +358,8 @@ static bool try_display(struct gpu_ctx *ctx, EGLDisplay d, const char *label, ch
 fail:
 	if (c != EGL_NO_CONTEXT)
 		eglDestroyContext(d, c);
-	display_unref(d);
+	if (!was_initialized)
+		eglTerminate(d);
 	return false;
 }
 
@@ -571,8 +523,8 @@ void gpu_destroy(struct gpu_ctx *ctx)
 		else
 			eglMakeCurrent(ctx->display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
 	}
+	/* The display stays initialized (see "Displays are never terminated"). */
 	eglDestroyContext(ctx->display, ctx->context);
-	display_unref(ctx->display);
 	free(ctx);
 }
 
