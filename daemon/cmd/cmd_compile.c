@@ -6,6 +6,7 @@
 #include "config.h"
 #include "sl.h"
 #include "spec.h"
+#include "glsl.h"
 
 #include <errno.h>
 #include <getopt.h>
@@ -16,7 +17,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-enum emit_mode { EMIT_NONE, EMIT_AST, EMIT_IR, EMIT_REPORT, EMIT_CACHE };
+enum emit_mode { EMIT_NONE, EMIT_AST, EMIT_IR, EMIT_REPORT, EMIT_CACHE, EMIT_GLSL };
 
 static void usage(FILE *out)
 {
@@ -40,6 +41,9 @@ static void usage(FILE *out)
 		"                                  instruction counts\n"
 		"                          cache   the caching program of a surface shader\n"
 		"                                  (its static part, as IR)\n"
+		"                          glsl    the GLSL compute shader of a surface's\n"
+		"                                  dynamic part (with no lights), or of a light\n"
+		"                                  shader's translation\n"
 		"  --dynamic P1,P2,...   Surface parameters a user may edit: specialize with\n"
 		"                        them dynamic as well as the lights\n"
 		"  -I DIR, --include DIR\n"
@@ -211,9 +215,11 @@ static int parse_args(int argc, char **argv, struct compile_args *args)
 				args->emit = EMIT_REPORT;
 			else if (strcmp(optarg, "cache") == 0)
 				args->emit = EMIT_CACHE;
+			else if (strcmp(optarg, "glsl") == 0)
+				args->emit = EMIT_GLSL;
 			else
 				return usage_error("unknown --emit kind '%s' (expected ast, ir, "
-						   "report or cache)", optarg);
+						   "report, cache or glsl)", optarg);
 			break;
 		case 'y': {
 			/* a comma-separated list of parameter names */
@@ -266,10 +272,56 @@ static int parse_args(int argc, char **argv, struct compile_args *args)
 	return -1;
 }
 
-/* The report (with the specialization of a surface shader) or the caching program. */
+/* Lines of @s (a NUL-terminated text). */
+static long count_lines(const char *s)
+{
+	long n = 0;
+	for (; *s; s++)
+		n += *s == '\n';
+	return n;
+}
+
+/*
+ * The GLSL of a light shader: its translation, inside a kernel whose surface
+ * adds up the light's Cl over an illuminance loop.
+ */
+static bool emit_light_glsl(const struct sl_program *light, FILE *mem)
+{
+	static const char wrapper[] =
+		"surface lightpreview() { Oi = 1; Ci = 0; illuminance(P) { Ci += Cl; } }\n";
+	struct sl_options o = { .diag = stderr };
+	struct sl_program *surf = sl_compile_string("<light preview>", wrapper, sizeof(wrapper) - 1,
+						    &o);
+	if (!surf)
+		return false;
+	int32_t inputs[SL_GLOBAL_COUNT], outputs[2];
+	uint32_t nin = 0;
+	static const enum sl_global in_globals[] = { SL_GLOBAL_P, SL_GLOBAL_N, SL_GLOBAL_I,
+						     SL_GLOBAL_E };
+	for (size_t g = 0; g < sizeof(in_globals) / sizeof(in_globals[0]); g++)
+		if (surf->global_reg[in_globals[g]] >= 0)
+			inputs[nin++] = surf->global_reg[in_globals[g]];
+	outputs[0] = surf->global_reg[SL_GLOBAL_CI];
+	outputs[1] = surf->global_reg[SL_GLOBAL_OI];
+	struct sl_slice slice = { surf, NULL, inputs, nin, outputs, 2 };
+	struct sl_glsl_layout lay;
+	const struct sl_program *lights[1] = { light };
+	char *src = sl_glsl_emit(&slice, lights, 1, &lay, stderr);
+	if (src) {
+		fputs(src, mem);
+		sl_glsl_layout_finish(&lay);
+	}
+	free(src);
+	sl_program_destroy(surf);
+	return src != NULL;
+}
+
+/* The report (with the specialization of a surface shader), the caching program or GLSL. */
 static bool emit_specialized(const struct sl_program *prog, const struct compile_args *args,
 			     FILE *mem)
 {
+	if (sl_program_kind(prog) == SL_SHADER_LIGHT && args->emit == EMIT_GLSL && !args->ndyn)
+		return emit_light_glsl(prog, mem);
 	if (sl_program_kind(prog) != SL_SHADER_SURFACE) {
 		if (args->emit == EMIT_CACHE || args->ndyn) {
 			fprintf(stderr, "relight compile: %s is a %s shader; only surface shaders "
@@ -290,15 +342,31 @@ static bool emit_specialized(const struct sl_program *prog, const struct compile
 			in->loc.file < prog->nfiles ? prog->files[in->loc.file] : "?", in->loc.line,
 			in->loc.col);
 	}
+	/* The dynamic part's GLSL, with no lights (their count is fixed per kernel). */
+	struct sl_glsl_layout lay;
+	bool ok = true;
+	char *glsl = NULL;
+	if (args->emit == EMIT_GLSL || args->emit == EMIT_REPORT) {
+		glsl = sl_glsl_emit(&s->slice, NULL, 0, &lay,
+				    args->emit == EMIT_GLSL ? stderr : NULL);
+		if (glsl)
+			sl_glsl_layout_finish(&lay);
+		else if (args->emit == EMIT_GLSL)
+			ok = false;
+	}
 	if (args->emit == EMIT_CACHE) {
 		sl_ir_dump(s->caching, mem);
+	} else if (args->emit == EMIT_GLSL && glsl) {
+		fputs(glsl, mem);
 	} else if (args->emit == EMIT_REPORT) {
-		char *fields = sl_spec_report_fields(s, args->dyn, args->ndyn, -1);
+		char *fields = sl_spec_report_fields(s, args->dyn, args->ndyn,
+						     glsl ? count_lines(glsl) : -1);
 		sl_emit_report(prog, fields, mem);
 		free(fields);
 	}
+	free(glsl);
 	sl_spec_destroy(s);
-	return true;
+	return ok;
 }
 
 /* Compile (or parse, for --emit ast) and print or write the result. */
@@ -343,7 +411,7 @@ static int run(const struct compile_args *args)
 		if (prog && args->emit == EMIT_IR)
 			sl_emit(prog, SL_EMIT_IR, mem);
 		else if (prog && (args->emit == EMIT_REPORT || args->emit == EMIT_CACHE ||
-				  args->ndyn))
+				  args->emit == EMIT_GLSL || args->ndyn))
 			ok = emit_specialized(prog, args, mem);
 		sl_program_destroy(prog);
 	}

@@ -527,14 +527,22 @@ struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *
 		if ((in->op == SL_OP_SETCOMP || in->op == SL_OP_ASET) && !s->reg_dynamic[in->dst] &&
 		    prog->regs[in->dst].kind != SL_REG_CONST)
 			add_unique(&s->cached, &s->ncached, in->dst);
-		/* Built-ins that read globals they are not given (the lighting
+		/* Built-ins that read globals they are not given: the lighting
 		 * functions read P; faceforward(N, I) reads Ng; texture() with no
-		 * coordinates s and t): those globals are inputs too. */
-		if (in->op == SL_OP_CALL && in->bi >= 0 &&
-		    (sl_builtins[in->bi].flags & (SL_BIF_GLOBALS | SL_BIF_LIGHTS))) {
-			static const enum sl_global implicit[] = { SL_GLOBAL_P, SL_GLOBAL_N, SL_GLOBAL_I,
-								   SL_GLOBAL_NG, SL_GLOBAL_S, SL_GLOBAL_T };
-			for (size_t g = 0; g < sizeof(implicit) / sizeof(implicit[0]); g++) {
+		 * coordinates reads s and t. Those globals are inputs too. */
+		if (in->op == SL_OP_CALL && in->bi >= 0) {
+			const struct sl_builtin *b = &sl_builtins[in->bi];
+			enum sl_global implicit[2];
+			int ni = 0;
+			if (b->flags & SL_BIF_LIGHTS)
+				implicit[ni++] = SL_GLOBAL_P;
+			else if (b->id == SL_BI_FACEFORWARD && in->nargs == 2)
+				implicit[ni++] = SL_GLOBAL_NG;
+			else if (b->id == SL_BI_TEXTURE && in->nargs <= 2) {
+				implicit[ni++] = SL_GLOBAL_S;
+				implicit[ni++] = SL_GLOBAL_T;
+			}
+			for (int g = 0; g < ni; g++) {
 				int32_t r = prog->global_reg[implicit[g]];
 				if (r >= 0 && !s->reg_dynamic[r])
 					add_unique(&s->cached, &s->ncached, r);

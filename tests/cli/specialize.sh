@@ -43,4 +43,18 @@ expect_stderr "only surface shaders are specialized"
 run "empty --dynamic" "$relight" compile --dynamic , plastic
 expect_status 2
 
+# Every shader of the library gives GLSL that glslangValidator accepts.
+if command -v glslangValidator >/dev/null 2>&1; then
+	for sl in "$source_dir"/shaders/*.sl; do
+		name=$(basename "$sl" .sl)
+		case "$name" in noisebump) continue ;; esac   # displacement: not on the GPU
+		run "glsl of $name" "$relight" compile --emit glsl -o "$work/$name.comp" "$sl"
+		expect_status 0
+		run "glslangValidator accepts $name" glslangValidator "$work/$name.comp"
+		expect_status 0
+	done
+else
+	echo "specialize.sh: glslangValidator missing: GLSL validation skipped" >&2
+fi
+
 finish
