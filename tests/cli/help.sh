@@ -58,9 +58,9 @@ run "compile: missing option argument" "$relight" compile x.sl --emit
 expect_status 2
 expect_stderr "option '--emit' needs an argument"
 
-run "compile: bad --emit kind" "$relight" compile --emit glsl x.sl
+run "compile: bad --emit kind" "$relight" compile --emit pdf x.sl
 expect_status 2
-expect_stderr "unknown --emit kind 'glsl'"
+expect_stderr "unknown --emit kind 'pdf'"
 
 run "compile: no input" "$relight" compile
 expect_status 2
