@@ -46,6 +46,8 @@ static void usage(FILE *out)
 		"                                  shader's translation\n"
 		"  --dynamic P1,P2,...   Surface parameters a user may edit: specialize with\n"
 		"                        them dynamic as well as the lights\n"
+		"  --strict              Light-dependent values the GPU cannot compute (they\n"
+		"                        are cached at bake time, a warning) are errors\n"
 		"  -I DIR, --include DIR\n"
 		"                        Search DIR for #include files (after the including\n"
 		"                        file's own directory); may be repeated\n"
@@ -176,6 +178,7 @@ static int write_output(const char *out_path, const char *data, size_t len)
 /* The parsed command line. The strings point into argv. */
 struct compile_args {
 	enum emit_mode emit;
+	bool strict;                /* --strict */
 	const char **dyn;           /* --dynamic names */
 	size_t ndyn;
 	char *dyn_buf;
@@ -194,6 +197,7 @@ static int parse_args(int argc, char **argv, struct compile_args *args)
 		{ "define", required_argument, NULL, 'D' },
 		{ "output", required_argument, NULL, 'o' },
 		{ "dynamic", required_argument, NULL, 'y' },
+		{ "strict", no_argument, NULL, 's' },
 		{ "help", no_argument, NULL, 'h' },
 		{ NULL, 0, NULL, 0 },
 	};
@@ -220,6 +224,9 @@ static int parse_args(int argc, char **argv, struct compile_args *args)
 			else
 				return usage_error("unknown --emit kind '%s' (expected ast, ir, "
 						   "report, cache or glsl)", optarg);
+			break;
+		case 's':
+			args->strict = true;
 			break;
 		case 'y': {
 			/* a comma-separated list of parameter names */
@@ -337,10 +344,14 @@ static bool emit_specialized(const struct sl_program *prog, const struct compile
 		return false;
 	for (uint32_t k = 0; k < s->ncache_required; k++) {
 		const struct sl_insn *in = &prog->code[s->cache_required[k]];
-		fprintf(stderr, "%s:%u:%u: warning: this light-dependent value cannot be computed "
+		fprintf(stderr, "%s:%u:%u: %s: this light-dependent value cannot be computed "
 			"on the GPU; it is cached at bake time\n",
 			in->loc.file < prog->nfiles ? prog->files[in->loc.file] : "?", in->loc.line,
-			in->loc.col);
+			in->loc.col, args->strict ? "error" : "warning");
+	}
+	if (args->strict && s->ncache_required) {
+		sl_spec_destroy(s);
+		return false;
 	}
 	/* The dynamic part's GLSL, with no lights (their count is fixed per kernel). */
 	struct sl_glsl_layout lay;
@@ -411,7 +422,7 @@ static int run(const struct compile_args *args)
 		if (prog && args->emit == EMIT_IR)
 			sl_emit(prog, SL_EMIT_IR, mem);
 		else if (prog && (args->emit == EMIT_REPORT || args->emit == EMIT_CACHE ||
-				  args->emit == EMIT_GLSL || args->ndyn))
+				  args->emit == EMIT_GLSL || args->ndyn || args->strict))
 			ok = emit_specialized(prog, args, mem);
 		sl_program_destroy(prog);
 	}

@@ -43,6 +43,30 @@ expect_stderr "only surface shaders are specialized"
 run "empty --dynamic" "$relight" compile --dynamic , plastic
 expect_status 2
 
+# A light-dependent derivative: computed at bake time, a warning; an error with --strict.
+cat >"$work/deriv.sl" <<'SL'
+surface deriv()
+{
+	color c = diffuse(normalize(N));
+	Oi = 1;
+	Ci = Du(comp(c, 0)) * c;
+}
+SL
+run "cache-required warning" "$relight" compile --emit report "$work/deriv.sl"
+expect_status 0
+expect_stderr "deriv.sl:5:7: warning: this light-dependent value cannot be computed on the GPU"
+checks=$((checks + 1))
+python3 -c '
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert [c["builtin"] for c in d["cache_required"]] == ["Du"], d["cache_required"]
+' "$work/stdout" || fail "cache_required in the report"
+run "cache-required with --strict" "$relight" compile --strict "$work/deriv.sl"
+expect_status 1
+expect_stderr "deriv.sl:5:7: error: this light-dependent value"
+run "--strict on a clean shader" "$relight" compile --strict plastic
+expect_status 0
+
 # Every shader of the library gives GLSL that glslangValidator accepts.
 if command -v glslangValidator >/dev/null 2>&1; then
 	for sl in "$source_dir"/shaders/*.sl; do
