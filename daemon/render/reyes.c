@@ -237,6 +237,8 @@ struct render {
 	atomic_size_t next;
 	size_t *todo;
 	size_t ntodo;
+	size_t *active;                  /* the shaded jobs the current row touches */
+	size_t nactive;
 	uint32_t row;
 	struct tctx *ctx;
 	uint32_t nthreads;
@@ -1035,10 +1037,8 @@ static void hide_bucket(struct tctx *t, uint32_t bx)
 	reyes_hider_begin(t->hider, x0, y0, x1, y1);
 	float rx0, ry0, rx1, ry1;
 	reyes_hider_region(t->hider, &rx0, &ry0, &rx1, &ry1);
-	for (size_t i = 0; i < r->njobs; i++) {
-		const struct job *j = &r->jobs[i];
-		if (!j->sh || j->row0 > r->row || j->row1 < r->row)
-			continue;
+	for (size_t k = 0; k < r->nactive; k++) {
+		const struct job *j = &r->jobs[r->active[k]];
 		if (j->bx1 < rx0 || j->bx0 > rx1 || j->by1 < ry0 || j->by0 > ry1)
 			continue;
 		reyes_hider_add(t->hider, &j->sh->hg);
@@ -1436,6 +1436,9 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 
 	/* bucket rows */
 	r.todo = malloc(sizeof(size_t) * (r.njobs + 1));
+	r.active = malloc(sizeof(size_t) * (r.njobs + 1));
+	if (!r.todo || !r.active)
+		ok = false;
 	for (r.row = 0; ok && r.row < r.nby; r.row++) {
 		r.ntodo = 0;
 		for (size_t i = 0; i < r.njobs; i++)
@@ -1446,6 +1449,10 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 			ok = false;
 			break;
 		}
+		r.nactive = 0;
+		for (size_t i = 0; i < r.njobs; i++)
+			if (r.jobs[i].sh && r.jobs[i].row0 <= r.row && r.jobs[i].row1 >= r.row)
+				r.active[r.nactive++] = i;
 		run_threads(&r, hide_worker);
 		for (size_t i = 0; i < r.njobs; i++)
 			if (r.jobs[i].row1 <= r.row)
@@ -1494,6 +1501,7 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	}
 	free(r.ctx);
 	free(r.todo);
+	free(r.active);
 	free(r.jobs);
 	for (uint32_t q = 0; q < r.naov; q++)
 		free((char *)r.aovs[q].name);
