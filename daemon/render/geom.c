@@ -77,18 +77,6 @@ static double clampd(double x, double lo, double hi)
 	return x < lo ? lo : x > hi ? hi : x;
 }
 
-/* A double as a float, with NaN as 0 and overflow clamped. */
-static float to_float(double x)
-{
-	if (x != x)
-		return 0.0f;
-	if (x > FLT_MAX)
-		return FLT_MAX;
-	if (x < -FLT_MAX)
-		return -FLT_MAX;
-	return (float)x;
-}
-
 const struct reyes_primvar *reyes_prim_var(const struct reyes_prim *p, const char *name)
 {
 	if (!p || !name || !p->vars)
@@ -1568,8 +1556,8 @@ void reyes_patch_bound(const struct reyes_patch *pa, int t, float lo[3], float h
 	}
 	double pad = 1e-6 * mag + 1e-30;
 	for (int c = 0; c < 3; c++) {
-		lo[c] = to_float(blo[c] - pad);
-		hi[c] = to_float(bhi[c] + pad);
+		lo[c] = sl_to_float(blo[c] - pad);
+		hi[c] = sl_to_float(bhi[c] + pad);
 	}
 }
 
@@ -1601,7 +1589,7 @@ static bool interp_var(const struct piece *pc, const struct dice *d,
 		if (item >= var->count)
 			return false;
 		for (size_t e = 0; e < stride; e++) {
-			float x = to_float(vals[(size_t)item * stride + e]);
+			float x = sl_to_float(vals[(size_t)item * stride + e]);
 			for (uint32_t k = 0; k < n; k++)
 				dst[e * n + k] = x;
 		}
@@ -1625,7 +1613,7 @@ static bool interp_var(const struct piece *pc, const struct dice *d,
 						const double *w = &d->wu[i * 4];
 						double x = w[0] * H[0] + w[1] * H[1] + w[2] * H[2] +
 							   w[3] * H[3];
-						dst[e * n + j * d->nu + i] = to_float(x);
+						dst[e * n + j * d->nu + i] = sl_to_float(x);
 					}
 				}
 			return true;
@@ -1656,7 +1644,7 @@ static bool interp_var(const struct piece *pc, const struct dice *d,
 				double s = d->s[i];
 				double x = (1 - s) * (1 - t) * q[0] + s * (1 - t) * q[1] +
 					   (1 - s) * t * q[2] + s * t * q[3];
-				dst[e * n + j * d->nu + i] = to_float(x);
+				dst[e * n + j * d->nu + i] = sl_to_float(x);
 			}
 		}
 	}
@@ -1779,14 +1767,14 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 					double P1[3], a[3], b[3];
 					piece_eval(&pc, Q[1], pc.P[1], d.s[i], d.t[j], P1, a, b);
 					for (int c = 0; c < 3; c++)
-						g->P[1][c * n + k] = to_float(P1[c]);
+						g->P[1][c * n + k] = sl_to_float(P1[c]);
 				}
 			}
 			for (int c = 0; c < 3; c++) {
-				g->P[0][c * n + k] = to_float(P[c]);
-				g->dPdu[c * n + k] = to_float(du[c]);
-				g->dPdv[c * n + k] = to_float(dv[c]);
-				g->Ng[c * n + k] = to_float(N[c]);
+				g->P[0][c * n + k] = sl_to_float(P[c]);
+				g->dPdu[c * n + k] = sl_to_float(du[c]);
+				g->dPdv[c * n + k] = sl_to_float(dv[c]);
+				g->Ng[c * n + k] = sl_to_float(N[c]);
 			}
 			g->u[k] = (float)(pc.uoff + pc.uscale * d.s[i]);
 			g->v[k] = (float)(pc.voff + pc.vscale * d.t[j]);
@@ -1813,7 +1801,7 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 					double len = v3_len(N);
 					if (len * ku * kv > 1e-6 * maxu * maxv) {
 						for (int c = 0; c < 3; c++)
-							g->Ng[c * n + k] = to_float(N[c] * ku * kv);
+							g->Ng[c * n + k] = sl_to_float(N[c] * ku * kv);
 						break;
 					}
 				}

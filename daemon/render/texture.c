@@ -24,6 +24,7 @@
  */
 #include "exr_internal.h"
 #include "mathlib.h"
+#include "noise.h"
 
 #include <float.h>
 #include <math.h>
@@ -758,16 +759,6 @@ bool reyes_tex_environment(struct reyes_texsys *ts, const struct sl_tex_lookup *
 	return true;
 }
 
-static uint32_t mix32(uint32_t x)
-{
-	x ^= x >> 16;
-	x *= 0x7feb352du;
-	x ^= x >> 15;
-	x *= 0x846ca68bu;
-	x ^= x >> 16;
-	return x;
-}
-
 static uint32_t float_bits(double v)
 {
 	float f = (float)v;
@@ -843,16 +834,16 @@ bool reyes_tex_shadow(struct reyes_texsys *ts, const struct sl_tex_lookup *q)
 			double ds = clamp_region((smax - smin) * sw + sb);
 			double dt = clamp_region((tmax - tmin) * tw + tb);
 			int nu = ds > 0.0 || dt > 0.0 ? grid : 1;
-			uint32_t seed = mix32(i * 0x9e3779b9u ^ mix32(float_bits(sc) ^
-								    mix32(float_bits(tc))));
+			uint32_t seed = sl_hash_mix(i * 0x9e3779b9u ^ sl_hash_mix(float_bits(sc) ^
+								    sl_hash_mix(float_bits(tc))));
 			int shadowed = 0;
 			for (int v = 0; v < nu; v++) {
 				for (int u = 0; u < nu; u++) {
 					double ju = 0.5, jv = 0.5;
 					if (nu > 1) {
-						seed = mix32(seed + 0x6d2b79f5u);
+						seed = sl_hash_mix(seed + 0x6d2b79f5u);
 						ju = (seed >> 8) * (1.0 / 16777216.0);
-						seed = mix32(seed + 0x6d2b79f5u);
+						seed = sl_hash_mix(seed + 0x6d2b79f5u);
 						jv = (seed >> 8) * (1.0 / 16777216.0);
 					}
 					double s = sc + ((u + ju) / nu - 0.5) * ds;

@@ -19,8 +19,7 @@ float sl_finite(float x)
 	return x;
 }
 
-/* A double result brought into the float range. */
-static float to_float(double x)
+float sl_to_float(double x)
 {
 	if (x != x)
 		return 0.0f;
@@ -156,7 +155,7 @@ float sl_v3_length(const float a[3])
 {
 	/* In double: the squares of large components would overflow a float. */
 	double x = a[0], y = a[1], z = a[2];
-	return to_float(sqrt(x * x + y * y + z * z));
+	return sl_to_float(sqrt(x * x + y * y + z * z));
 }
 
 void sl_v3_normalize(float r[3], const float a[3])
@@ -187,7 +186,7 @@ float sl_ptlined(const float p0[3], const float p1[3], const float q[3])
 		double e = w[c] - t * d[c];
 		s += e * e;
 	}
-	return to_float(sqrt(s));
+	return sl_to_float(sqrt(s));
 }
 
 void sl_reflect(float r[3], const float I[3], const float N[3])
@@ -309,7 +308,7 @@ void sl_m44_mul(float r[16], const float a[16], const float b[16])
 			double s = 0.0;
 			for (int k = 0; k < 4; k++)
 				s += (double)a[i * 4 + k] * b[k * 4 + j];
-			t[i * 4 + j] = to_float(s);
+			t[i * 4 + j] = sl_to_float(s);
 		}
 	}
 	memcpy(r, t, sizeof(t));
@@ -350,7 +349,7 @@ float sl_m44_det(const float m[16])
 		double cof = minor3(d, 0, j);
 		det += (j & 1 ? -d[j] : d[j]) * cof;
 	}
-	return to_float(det);
+	return sl_to_float(det);
 }
 
 bool sl_m44_inverse(float r[16], const float m[16])
@@ -488,7 +487,7 @@ void sl_xform_point(float r[3], const float m[16], const float p[3])
 		o[2] /= w;
 	}
 	for (int j = 0; j < 3; j++)
-		r[j] = to_float(o[j]);
+		r[j] = sl_to_float(o[j]);
 }
 
 void sl_xform_vector(float r[3], const float m[16], const float v[3])
@@ -497,7 +496,7 @@ void sl_xform_vector(float r[3], const float m[16], const float v[3])
 	for (int j = 0; j < 3; j++)
 		o[j] = (double)v[0] * m[j] + (double)v[1] * m[4 + j] + (double)v[2] * m[8 + j];
 	for (int j = 0; j < 3; j++)
-		r[j] = to_float(o[j]);
+		r[j] = sl_to_float(o[j]);
 }
 
 void sl_xform_normal(float r[3], const float m[16], const float n[3])
@@ -521,7 +520,7 @@ void sl_xform_normal(float r[3], const float m[16], const float n[3])
 		double s = 0.0;
 		for (int i = 0; i < 3; i++)
 			s += (double)n[i] * cof[i][j];
-		r[j] = to_float(s * scale);
+		r[j] = sl_to_float(s * scale);
 	}
 }
 
@@ -573,7 +572,7 @@ static void mat3_apply(const double m[3][3], const float in[3], float out[3])
 	for (int i = 0; i < 3; i++)
 		o[i] = m[i][0] * in[0] + m[i][1] * in[1] + m[i][2] * in[2];
 	for (int i = 0; i < 3; i++)
-		out[i] = to_float(o[i]);
+		out[i] = sl_to_float(o[i]);
 }
 
 /* Apply the inverse of @m (computed exactly, so that round trips close). */
@@ -593,7 +592,7 @@ static void mat3_apply_inverse(const double m[3][3], const float in[3], float ou
 	for (int i = 0; i < 3; i++)
 		o[i] = (cof[0][i] * in[0] + cof[1][i] * in[1] + cof[2][i] * in[2]) / det;
 	for (int i = 0; i < 3; i++)
-		out[i] = to_float(o[i]);
+		out[i] = sl_to_float(o[i]);
 }
 
 /* Hue in [0,1) of an RGB color with maximum @mx and range @d > 0. */
@@ -698,8 +697,8 @@ static void xyz_to_xyy(const float c[3], float o[3])
 		o[2] = c[1];
 		return;
 	}
-	o[0] = to_float(c[0] / sum);
-	o[1] = to_float(c[1] / sum);
+	o[0] = sl_to_float(c[0] / sum);
+	o[1] = sl_to_float(c[1] / sum);
 	o[2] = c[1];
 }
 
@@ -710,9 +709,9 @@ static void xyy_to_xyz(const float c[3], float o[3])
 		o[0] = o[1] = o[2] = 0.0f;
 		return;
 	}
-	o[0] = to_float(x * Y / y);
+	o[0] = sl_to_float(x * Y / y);
 	o[1] = c[2];
-	o[2] = to_float((1.0 - x - y) * Y / y);
+	o[2] = sl_to_float((1.0 - x - y) * Y / y);
 }
 
 bool sl_color_from_rgb(const char *space, const float rgb[3], float out[3])
@@ -861,7 +860,7 @@ static void spline_forward(int basis, float t, const float *vals, int nvals, int
 				k = nvals - 1;
 			s += (double)w[j] * vals[k * ncomp + c];
 		}
-		out[c] = to_float(s);
+		out[c] = sl_to_float(s);
 	}
 }
 

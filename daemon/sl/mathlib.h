@@ -18,6 +18,8 @@
 
 /** NaN -> 0, +-Inf -> +-FLT_MAX, anything else unchanged. */
 float sl_finite(float x);
+/** A double brought into the float range: NaN gives 0, overflow the largest float. */
+float sl_to_float(double x);
 
 /** x^y. pow(0,0) = 1; 0^negative = 0 (like division by zero); a negative base
  *  with a non-integer exponent gives 0; overflow gives +-FLT_MAX. */
