@@ -17,6 +17,8 @@
  * points, so a non-DSA call afterwards would touch the wrong object.
  */
 #include "gpu.h"
+#include "config.h"
+#include "fileutil.h"
 #include "log.h"
 
 #define GL_GLEXT_PROTOTYPES 1
@@ -85,6 +87,10 @@ struct gpu_ctx {
 	struct gpu_program **buckets;  /* program cache, power-of-two buckets */
 	uint32_t nbuckets, nprograms;
 	struct gpu_buffer *buffers;
+	/* Compiled programs kept on disk (NULL: off) and what they saved. */
+	char *cache_dir;
+	GLint nbinary_formats;
+	unsigned disk_hits, compiled;
 };
 
 /* ---- small helpers ---- */
@@ -206,6 +212,18 @@ static bool is_current(const struct gpu_ctx *ctx, const char *fn)
 	if (eglGetCurrentContext() == ctx->context)
 		return true;
 	rl_log(RL_LOG_ERROR, "%s: the GPU context is not current on this thread", fn);
+	return false;
+}
+
+bool gpu_make_current(struct gpu_ctx *ctx)
+{
+	if (!ctx)
+		return false;
+	if (eglGetCurrentContext() == ctx->context)
+		return true;
+	if (eglMakeCurrent(ctx->display, EGL_NO_SURFACE, EGL_NO_SURFACE, ctx->context))
+		return true;
+	rl_log(RL_LOG_ERROR, "gpu_make_current: eglMakeCurrent failed (0x%x)", (unsigned)eglGetError());
 	return false;
 }
 
@@ -455,6 +473,9 @@ struct gpu_ctx *gpu_create(char *err, size_t errlen)
 	err[0] = '\0';
 
 	ctx->software = ctx->software || is_software_renderer(ctx->renderer);
+	glGetIntegerv(GL_NUM_PROGRAM_BINARY_FORMATS, &ctx->nbinary_formats);
+	gl_check("GL_NUM_PROGRAM_BINARY_FORMATS");
+	ctx->cache_dir = rl_cache_dir("gl");
 	if (ctx->software)
 		rl_log(RL_LOG_WARN, "GPU: OpenGL %d.%d renders in SOFTWARE on '%s': no GPU was found, "
 		       "GPU work runs on the CPU and is many times slower", ctx->gl_major,
@@ -525,6 +546,7 @@ void gpu_destroy(struct gpu_ctx *ctx)
 	}
 	/* The display stays initialized (see "Displays are never terminated"). */
 	eglDestroyContext(ctx->display, ctx->context);
+	free(ctx->cache_dir);
 	free(ctx);
 }
 
@@ -597,7 +619,7 @@ static char *program_info_log(GLuint program)
 	return s;
 }
 
-static GLuint compile_and_link(const char *source, size_t len, FILE *log)
+static GLuint compile_and_link(const char *source, size_t len, FILE *log, bool retrievable)
 {
 	GLuint shader = glCreateShader(GL_COMPUTE_SHADER);
 	if (!shader) {
@@ -625,6 +647,8 @@ static GLuint compile_and_link(const char *source, size_t len, FILE *log)
 		return 0;
 	}
 	glAttachShader(program, shader);
+	if (retrievable)
+		glProgramParameteri(program, GL_PROGRAM_BINARY_RETRIEVABLE_HINT, GL_TRUE);
 	glLinkProgram(program);
 	glDetachShader(program, shader);
 	glDeleteShader(shader);
@@ -661,6 +685,146 @@ static bool cache_grow(struct gpu_ctx *ctx)
 	return true;
 }
 
+/* ---- programs kept on disk ---- */
+
+/*
+ * A compiled program is kept as DIR/KEY.glprog, KEY a hash of everything its
+ * binary depends on: the source (which names the shader sources, dynamic set
+ * and generator version it came from), the driver (vendor, renderer, GL
+ * version) and relight's version. The file holds a magic, the binary's
+ * format and length, a hash of the binary, then the binary; an entry that
+ * fails any check, or that the driver refuses, is deleted and recompiled.
+ */
+#define BIN_MAGIC "RLGLPRG1"
+#define BIN_HEADER 56  /* magic 8, format 4, length 4, binary hash 32, reserved 8 */
+#define BIN_MAX (256u << 20)
+
+static char *binary_path(const struct gpu_ctx *ctx, const char *source, size_t len)
+{
+	struct rl_hash128 h;
+	rl_hash128_init(&h);
+	rl_hash128_str(&h, BIN_MAGIC);
+	rl_hash128_str(&h, RELIGHT_VERSION);
+	rl_hash128_str(&h, (const char *)glGetString(GL_VENDOR));
+	rl_hash128_str(&h, (const char *)glGetString(GL_RENDERER));
+	rl_hash128_str(&h, (const char *)glGetString(GL_VERSION));
+	rl_hash128_add(&h, source, len);
+	char key[33];
+	rl_hash128_hex(&h, key);
+	size_t n = strlen(ctx->cache_dir) + sizeof(key) + 16;
+	char *path = malloc(n);
+	if (path)
+		snprintf(path, n, "%s/%s.glprog", ctx->cache_dir, key);
+	return path;
+}
+
+static void binary_hash(const void *data, size_t len, char out[33])
+{
+	struct rl_hash128 h;
+	rl_hash128_init(&h);
+	rl_hash128_add(&h, data, len);
+	rl_hash128_hex(&h, out);
+}
+
+static uint32_t get_u32(const unsigned char *p)
+{
+	return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+
+static void put_u32(unsigned char *p, uint32_t v)
+{
+	for (int i = 0; i < 4; i++)
+		p[i] = (unsigned char)(v >> (8 * i));
+}
+
+/* The program kept at @path, or 0 (a bad entry is removed). */
+static GLuint load_binary(const char *path)
+{
+	size_t n = 0;
+	char err[256] = "";
+	unsigned char *d = (unsigned char *)rl_read_file(path, BIN_MAX, &n, err, sizeof(err));
+	if (!d)
+		return 0;
+	GLuint program = 0;
+	uint32_t len = n >= BIN_HEADER ? get_u32(d + 12) : 0;
+	char want[33], have[33];
+	bool valid = n >= BIN_HEADER && !memcmp(d, BIN_MAGIC, 8) && len == n - BIN_HEADER && len;
+	if (valid) {
+		memcpy(want, d + 16, 32);
+		want[32] = '\0';
+		binary_hash(d + BIN_HEADER, len, have);
+		valid = !strcmp(want, have);
+	}
+	if (valid) {
+		program = glCreateProgram();
+		glProgramBinary(program, (GLenum)get_u32(d + 8), d + BIN_HEADER, (GLsizei)len);
+		GLint ok = GL_FALSE;
+		glGetProgramiv(program, GL_LINK_STATUS, &ok);
+		gl_drain();
+		if (!ok) {
+			glDeleteProgram(program);
+			program = 0;
+		}
+	}
+	free(d);
+	if (!program) {
+		rl_log(RL_LOG_INFO, "gpu: dropping the unusable program cache entry %s", path);
+		unlink(path);
+	}
+	return program;
+}
+
+/* Keep @program's binary at @path; failures only cost a later compile. */
+static void store_binary(const char *path, GLuint program)
+{
+	GLint len = 0;
+	glGetProgramiv(program, GL_PROGRAM_BINARY_LENGTH, &len);
+	if (len <= 0 || (uint32_t)len > BIN_MAX - BIN_HEADER) {
+		gl_drain();
+		return;
+	}
+	unsigned char *d = malloc((size_t)len + BIN_HEADER);
+	if (!d)
+		return;
+	GLenum format = 0;
+	GLsizei got = 0;
+	glGetProgramBinary(program, len, &got, &format, d + BIN_HEADER);
+	if (got > 0 && got <= len) {
+		memset(d, 0, BIN_HEADER);
+		memcpy(d, BIN_MAGIC, 8);
+		put_u32(d + 8, (uint32_t)format);
+		put_u32(d + 12, (uint32_t)got);
+		char hash[33];
+		binary_hash(d + BIN_HEADER, (size_t)got, hash);
+		memcpy(d + 16, hash, 32);
+		char err[512];
+		if (!rl_write_file_atomic(path, d, (size_t)got + BIN_HEADER, err, sizeof(err)))
+			rl_log(RL_LOG_INFO, "gpu: cannot keep a compiled program: %s", err);
+	}
+	gl_drain();
+	free(d);
+}
+
+void gpu_set_program_cache(struct gpu_ctx *ctx, const char *dir)
+{
+	free(ctx->cache_dir);
+	ctx->cache_dir = NULL;
+	if (dir && *dir && rl_mkdir_p(dir)) {
+		size_t n = strlen(dir) + 1;
+		ctx->cache_dir = malloc(n);
+		if (ctx->cache_dir)
+			memcpy(ctx->cache_dir, dir, n);
+	}
+}
+
+void gpu_program_stats(const struct gpu_ctx *ctx, unsigned *disk_hits, unsigned *compiled)
+{
+	if (disk_hits)
+		*disk_hits = ctx->disk_hits;
+	if (compiled)
+		*compiled = ctx->compiled;
+}
+
 struct gpu_program *gpu_program(struct gpu_ctx *ctx, const char *source, FILE *log)
 {
 	if (!log)
@@ -694,7 +858,20 @@ struct gpu_program *gpu_program(struct gpu_ctx *ctx, const char *source, FILE *l
 		return NULL;
 	}
 	gl_drain();
-	GLuint name = compile_and_link(source, len, log);
+	bool keep = ctx->cache_dir && ctx->nbinary_formats > 0;
+	char *path = keep ? binary_path(ctx, source, len) : NULL;
+	GLuint name = path ? load_binary(path) : 0;
+	if (name) {
+		ctx->disk_hits++;
+	} else {
+		name = compile_and_link(source, len, log, path != NULL);
+		if (name) {
+			ctx->compiled++;
+			if (path)
+				store_binary(path, name);
+		}
+	}
+	free(path);
 	if (!name) {
 		free(p);
 		free(copy);

@@ -2,7 +2,8 @@
  * The GPU: a headless OpenGL 4.3 core context through EGL (the device
  * platform when a GPU is there, Mesa's surfaceless platform otherwise, so the
  * same code runs on llvmpipe), compute programs, buffers, dispatch and
- * readback. Programs are cached in memory by a hash of their source.
+ * readback. Programs are cached in memory by a hash of their source, and
+ * their compiled binaries on disk (see gpu_set_program_cache).
  */
 #ifndef GPU_H
 #define GPU_H
@@ -25,6 +26,12 @@ struct gpu_buffer;
 struct gpu_ctx *gpu_create(char *err, size_t errlen);
 void gpu_destroy(struct gpu_ctx *ctx);
 
+/**
+ * Make @ctx current on the calling thread (a context is current on one
+ * thread at a time; every other call needs it current). False on failure.
+ */
+bool gpu_make_current(struct gpu_ctx *ctx);
+
 /** GL_RENDERER, and whether it is a software rasterizer. */
 const char *gpu_renderer(const struct gpu_ctx *ctx);
 bool gpu_is_software(const struct gpu_ctx *ctx);
@@ -36,6 +43,20 @@ bool gpu_is_software(const struct gpu_ctx *ctx);
  * twice gives the cached program (the context owns programs).
  */
 struct gpu_program *gpu_program(struct gpu_ctx *ctx, const char *source, FILE *log);
+
+/**
+ * Keep compiled program binaries in directory @dir (created if missing; NULL
+ * or "" turns the disk cache off). A context starts with rl_cache_dir("gl")
+ * ($RELIGHT_CACHE_DIR/gl, else ~/.cache/relight/gl; RELIGHT_CACHE_DIR=off
+ * disables it). An entry is keyed by a hash of the program's source, the
+ * driver (vendor, renderer, GL version) and relight's version; a damaged or
+ * refused entry is removed and the program compiled again. Without this,
+ * a cold compile of a large generated program costs seconds on llvmpipe.
+ */
+void gpu_set_program_cache(struct gpu_ctx *ctx, const char *dir);
+
+/** Programs this context loaded from the disk cache, and compiled from source. */
+void gpu_program_stats(const struct gpu_ctx *ctx, unsigned *disk_hits, unsigned *compiled);
 
 /** Set a uniform by name (float, vec2/3/4 by @n, or arrays): false if absent. */
 bool gpu_uniform_float(struct gpu_program *p, const char *name, const float *v, int n);

@@ -4,6 +4,7 @@
 
 #include "sl.h"
 #include "../common/arena.h"
+#include "../common/fileutil.h"
 
 #include <stdbool.h>
 #include <stdint.h>
@@ -30,6 +31,9 @@ struct sl_ctx {
 	bool too_many;                /* max_errors reached: phases should wind down */
 	bool quiet;                   /* suppress diagnostics (counts still kept) */
 	struct sl_intern_table names;
+	/* Every source text read (the file, its includes) and the -D definitions,
+	 * in order: the key of generated programs cached on disk. */
+	struct rl_hash128 source_hash;
 };
 
 void sl_ctx_init(struct sl_ctx *ctx, const struct sl_options *opts);

@@ -38,6 +38,7 @@
  */
 #include "glsl_impl.h"
 #include "exec_impl.h"
+#include "config.h"
 
 #include <float.h>
 #include <math.h>
@@ -1680,6 +1681,15 @@ char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lig
 		layout->out_stride += (uint32_t)reg_floats(s->prog, s->outputs[i]);
 
 	rl_strbuf_puts(&g->sec[GS_PRELUDE], prelude);
+	/* What the code was made from: with the code itself, the key of the
+	 * compiled program kept on disk (gpu_set_program_cache). */
+	rl_strbuf_printf(&g->sec[GS_PRELUDE], "// relight %s, GLSL generator %d\n", RELIGHT_VERSION,
+			 SL_GLSL_GENERATOR_VERSION);
+	rl_strbuf_printf(&g->sec[GS_PRELUDE], "// surface %s, source %s\n", s->prog->name,
+			 s->prog->source_hash);
+	for (uint32_t k = 0; k < nlights; k++)
+		rl_strbuf_printf(&g->sec[GS_PRELUDE], "// light %u: %s, source %s\n", k,
+				 lights[k]->name, lights[k]->source_hash);
 	sl_glsl_need(g, GH_CORE);
 	rl_strbuf_puts(&g->sec[GS_GLOBALS], "vec3 rl_L = vec3(0.0);\nvec3 rl_Cl = vec3(0.0);\n"
 			"vec3 rl_Ol = vec3(0.0);\nbool rl_lit = false;\nbool rl_amb = true;\n");

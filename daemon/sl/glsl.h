@@ -13,6 +13,9 @@
 #include <stdio.h>
 
 /** The part of a program to emit, and where its data comes from. */
+/** Bumped whenever the generated code changes for the same input. */
+#define SL_GLSL_GENERATOR_VERSION 1
+
 struct sl_slice {
 	const struct sl_program *prog;
 	/* Per instruction: 1 to emit it. NULL: every instruction. Block openers

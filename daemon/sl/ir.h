@@ -187,6 +187,9 @@ struct sl_program {
 	/* The files the source came from, for locations (index = sl_loc.file). */
 	const char **files;
 	uint32_t nfiles;
+
+	/* Hash of the source texts (file, includes) and -D definitions, as 32 hex digits. */
+	char source_hash[33];
 };
 
 /** Print one instruction as "  12  add %t3:color <- %Cs, %t2  ; file:line". */

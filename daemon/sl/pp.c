@@ -996,6 +996,8 @@ static void process_source(struct pp *pp, const char *path, uint32_t index, cons
 			   size_t len)
 {
 	struct file f = { .index = index, .path = path, .cond_base = pp->conds.len };
+	rl_hash128_add(&pp->ctx->source_hash, src, len);
+	rl_hash128_add(&pp->ctx->source_hash, "", 1);
 	if (!sl_lex_pp(pp->ctx, index, src, len, &f.toks))
 		pp->failed = true;
 	f.s = (struct stream){ .base = f.toks.data, .nbase = f.toks.len, .is_file = true };
@@ -1439,8 +1441,10 @@ bool sl_preprocess(struct sl_ctx *ctx, const char *path, const char *src, size_t
 	if (ctx->opts.n_defines) {
 		uint32_t cl = sl_ctx_add_file(ctx, "<command line>");
 		for (size_t i = 0; i < ctx->opts.n_defines; i++)
-			if (ctx->opts.defines[i])
+			if (ctx->opts.defines[i]) {
+				rl_hash128_str(&ctx->source_hash, ctx->opts.defines[i]);
 				predefine(&pp, cl, ctx->opts.defines[i]);
+			}
 	}
 
 	/* the tokens' spellings point into the source: keep a copy that lives as long */

@@ -28,6 +28,11 @@ const char *sl_program_name(const struct sl_program *prog)
 	return prog->name;
 }
 
+const char *sl_program_source_hash(const struct sl_program *prog)
+{
+	return prog->source_hash;
+}
+
 enum sl_shader_kind sl_program_kind(const struct sl_program *prog)
 {
 	return prog->kind;
@@ -100,6 +105,7 @@ static struct sl_program *compile(struct sl_ctx *ctx, const char *path, const ch
 	ctx->arena = rl_arena_create();
 	prog->source_path = rl_arena_strdup(prog->arena, path);
 	prog->nfiles = (uint32_t)ctx->files.len;
+	rl_hash128_hex(&ctx->source_hash, prog->source_hash);
 	prog->files = rl_arena_alloc(prog->arena, sizeof(char *) * (ctx->files.len + 1));
 	for (size_t i = 0; i < ctx->files.len; i++)
 		prog->files[i] = rl_arena_strdup(prog->arena, ctx->files.data[i]);

@@ -76,4 +76,11 @@ const char *sl_program_name(const struct sl_program *prog);
 enum sl_shader_kind sl_program_kind(const struct sl_program *prog);
 const char *sl_shader_kind_name(enum sl_shader_kind kind);
 
+/**
+ * A hash of everything the program was compiled from (its source, the files
+ * it included, the -D definitions), as 32 hex digits: with the dynamic set
+ * and the compiler version, the key of generated programs cached on disk.
+ */
+const char *sl_program_source_hash(const struct sl_program *prog);
+
 #endif

@@ -330,6 +330,106 @@ static void test_cache(void)
 	CHECK(gpu_program(ctx, square_int_src, NULL) == a);
 }
 
+/* The single *.glprog file in @dir, or false. */
+static bool only_entry(const char *dir, char *path, size_t n)
+{
+	char cmd[600];
+	snprintf(cmd, sizeof(cmd), "ls %s/*.glprog 2>/dev/null", dir);
+	FILE *p = popen(cmd, "r");
+	if (!p)
+		return false;
+	int count = 0;
+	char line[512];
+	while (fgets(line, sizeof(line), p)) {
+		line[strcspn(line, "\n")] = '\0';
+		if (!count++)
+			snprintf(path, n, "%s", line);
+	}
+	pclose(p);
+	return count == 1;
+}
+
+/* Damage byte @at of @path (from the end when negative) or cut it to @cut bytes. */
+static void damage(const char *path, long at, long cut)
+{
+	FILE *f = fopen(path, "r+b");
+	CHECK(f != NULL);
+	if (!f)
+		return;
+	fseek(f, 0, SEEK_END);
+	long n = ftell(f);
+	if (cut >= 0) {
+		fclose(f);
+		CHECK(truncate(path, cut) == 0);
+		return;
+	}
+	long pos = at < 0 ? n + at : at;
+	fseek(f, pos, SEEK_SET);
+	int c = fgetc(f);
+	fseek(f, pos, SEEK_SET);
+	fputc(c ^ 0x5a, f);
+	fclose(f);
+}
+
+/*
+ * Compiled programs on disk: a new context (as a new process would) loads
+ * the binary instead of compiling, and computes the same; a damaged, cut or
+ * foreign entry is dropped and the program compiled again.
+ */
+static void test_disk_cache(void)
+{
+	char dir[] = "/tmp/relight-glcache-XXXXXX";
+	CHECK(mkdtemp(dir) != NULL);
+	static const char src[] = SQUARE_SHADER("int") "// disk cache test\n";
+	char err[512], path[512];
+	/* damage: none, a byte of the binary, a byte of the header, cut short, empty */
+	const long at[] = { 0, -7, 20, 0, 0 }, cut[] = { -1, -1, -1, 40, 0 };
+	unsigned hits_total = 0, compiled_total = 0;
+	for (int round = 0; round < 6; round++) {
+		struct gpu_ctx *c = gpu_create(err, sizeof(err));
+		CHECK(c != NULL);
+		if (!c)
+			break;
+		gpu_set_program_cache(c, dir);
+		double t0 = now_ms();
+		struct gpu_program *p = gpu_program(c, src, NULL);
+		double ms = now_ms() - t0;
+		CHECK(p != NULL);
+		unsigned hits, compiled;
+		gpu_program_stats(c, &hits, &compiled);
+		/* round 0 compiles; round 1 loads; after damage (rounds 2..5) it compiles */
+		bool want_hit = round == 1;
+		CHECK(hits == (want_hit ? 1u : 0u) && compiled == (want_hit ? 0u : 1u));
+		hits_total += hits;
+		compiled_total += compiled;
+		printf("disk cache round %d: %s in %.2f ms\n", round, hits ? "loaded" : "compiled", ms);
+		float in[3] = { 1.5f, -2.0f, 3.0f }, out[3] = { 0 };
+		struct gpu_buffer *bi = gpu_buffer_create(c, sizeof(in), in);
+		struct gpu_buffer *bo = gpu_buffer_create(c, sizeof(out), out);
+		struct gpu_binding b[2] = { { 0, false, bi }, { 1, true, bo } };
+		CHECK(p && gpu_dispatch(c, p, b, 2, 3) && gpu_buffer_read(bo, 0, sizeof(out), out));
+		CHECK(out[0] == 2.25f && out[1] == 4.0f && out[2] == 9.0f);
+		gpu_destroy(c);
+		CHECK(only_entry(dir, path, sizeof(path)));
+		CHECK(gpu_make_current(ctx));
+		if (round >= 1 && round <= 5)
+			damage(path, at[round - 1], cut[round - 1]);
+	}
+	CHECK(hits_total == 1 && compiled_total == 5);
+	/* Caching off: nothing written. */
+	char cmd[600];
+	snprintf(cmd, sizeof(cmd), "rm -rf %s", dir);
+	CHECK(system(cmd) == 0);
+	struct gpu_ctx *c = gpu_create(err, sizeof(err));
+	if (c) {
+		gpu_set_program_cache(c, NULL);
+		CHECK(gpu_program(c, src, NULL) != NULL);
+		gpu_destroy(c);
+	}
+	CHECK(access(dir, F_OK) != 0);
+	CHECK(gpu_make_current(ctx));
+}
+
 static void test_buffers(void)
 {
 	unsigned char data[1024], back[1024];
@@ -578,6 +678,7 @@ int main(void)
 	RUN(test_uniforms);
 	RUN(test_compile_error);
 	RUN(test_cache);
+	RUN(test_disk_cache);
 	RUN(test_buffers);
 	RUN(test_dispatch_errors);
 	RUN(test_overhead);

@@ -1,0 +1,210 @@
+/* Atomic writes, bounded reads, content hashes and the cache directory. */
+#include "fileutil.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+static void set_err(char *err, size_t errlen, const char *path, const char *what)
+{
+	if (err && errlen)
+		snprintf(err, errlen, "%s: %s", path, what);
+}
+
+bool rl_write_file_atomic(const char *path, const void *data, size_t len, char *err,
+			  size_t errlen)
+{
+	size_t n = strlen(path);
+	char *tmp = malloc(n + 16);
+	if (!tmp) {
+		set_err(err, errlen, path, "out of memory");
+		return false;
+	}
+	memcpy(tmp, path, n);
+	memcpy(tmp + n, ".tmp.XXXXXX", 12);
+	int fd = mkstemp(tmp);
+	if (fd < 0) {
+		set_err(err, errlen, path, strerror(errno));
+		free(tmp);
+		return false;
+	}
+	const char *p = data;
+	size_t left = len;
+	int failure = 0;
+	while (left > 0) {
+		ssize_t w = write(fd, p, left);
+		if (w < 0 && errno == EINTR)
+			continue;
+		if (w <= 0) {
+			failure = w < 0 ? errno : EIO;
+			break;
+		}
+		p += w;
+		left -= (size_t)w;
+	}
+	/* mkstemp makes the file 0600; give it the usual permissions */
+	mode_t mask = umask(0);
+	umask(mask);
+	if (!failure && fchmod(fd, 0666 & ~mask) != 0)
+		failure = errno;
+	if (!failure && fsync(fd) != 0)
+		failure = errno;
+	if (close(fd) != 0 && !failure)
+		failure = errno;
+	if (!failure && rename(tmp, path) != 0)
+		failure = errno;
+	if (failure) {
+		unlink(tmp);
+		set_err(err, errlen, path, strerror(failure));
+	}
+	free(tmp);
+	return !failure;
+}
+
+char *rl_read_file(const char *path, size_t maxlen, size_t *len, char *err, size_t errlen)
+{
+	FILE *f = fopen(path, "rb");
+	if (!f) {
+		set_err(err, errlen, path, strerror(errno));
+		return NULL;
+	}
+	size_t cap = 4096, n = 0;
+	char *buf = malloc(cap + 1);
+	while (buf) {
+		if (n == cap) {
+			if (cap >= maxlen) {
+				set_err(err, errlen, path, "file too large");
+				free(buf);
+				buf = NULL;
+				break;
+			}
+			cap = cap * 2 > maxlen ? maxlen : cap * 2;
+			char *nb = realloc(buf, cap + 1);
+			if (!nb) {
+				free(buf);
+				buf = NULL;
+				break;
+			}
+			buf = nb;
+		}
+		size_t r = fread(buf + n, 1, cap - n, f);
+		n += r;
+		if (r == 0) {
+			if (ferror(f)) {
+				set_err(err, errlen, path, "read error");
+				free(buf);
+				buf = NULL;
+			}
+			break;
+		}
+	}
+	fclose(f);
+	if (!buf) {
+		if (err && errlen && !err[0])
+			set_err(err, errlen, path, "out of memory");
+		return NULL;
+	}
+	buf[n] = '\0';
+	if (len)
+		*len = n;
+	return buf;
+}
+
+bool rl_mkdir_p(const char *path)
+{
+	size_t n = strlen(path);
+	if (n == 0)
+		return false;
+	char *p = malloc(n + 1);
+	if (!p)
+		return false;
+	memcpy(p, path, n + 1);
+	bool ok = true;
+	for (size_t i = 1; i <= n && ok; i++) {
+		if (p[i] != '/' && p[i] != '\0')
+			continue;
+		char c = p[i];
+		p[i] = '\0';
+		if (mkdir(p, 0777) != 0 && errno != EEXIST)
+			ok = false;
+		p[i] = c;
+	}
+	struct stat st;
+	ok = ok && stat(path, &st) == 0 && S_ISDIR(st.st_mode);
+	free(p);
+	return ok;
+}
+
+char *rl_cache_dir(const char *what)
+{
+	const char *root = getenv("RELIGHT_CACHE_DIR");
+	const char *suffix = "";
+	if (root && (!*root || !strcmp(root, "off")))
+		return NULL;
+	if (!root || !*root) {
+		root = getenv("XDG_CACHE_HOME");
+		suffix = "/relight";
+		if (!root || root[0] != '/') {
+			root = getenv("HOME");
+			suffix = "/.cache/relight";
+		}
+		if (!root || root[0] != '/')
+			return NULL;
+	}
+	size_t n = strlen(root) + strlen(suffix) + strlen(what) + 2;
+	char *dir = malloc(n);
+	if (!dir)
+		return NULL;
+	snprintf(dir, n, "%s%s/%s", root, suffix, what);
+	if (!rl_mkdir_p(dir)) {
+		free(dir);
+		return NULL;
+	}
+	return dir;
+}
+
+/* ---- hashing ---- */
+
+/* Two 64-bit lanes with different multipliers, mixed by a strong finalizer. */
+static uint64_t mix64(uint64_t x)
+{
+	x ^= x >> 30;
+	x *= 0xbf58476d1ce4e5b9u;
+	x ^= x >> 27;
+	x *= 0x94d049bb133111ebu;
+	x ^= x >> 31;
+	return x;
+}
+
+void rl_hash128_init(struct rl_hash128 *h)
+{
+	h->a = 0x6a09e667f3bcc908u;
+	h->b = 0xbb67ae8584caa73bu;
+	h->len = 0;
+}
+
+void rl_hash128_add(struct rl_hash128 *h, const void *data, size_t len)
+{
+	const unsigned char *p = data;
+	for (size_t i = 0; i < len; i++) {
+		h->a = (h->a ^ p[i]) * 0x100000001b3u;
+		h->b = (h->b + p[i] + 1) * 0x9e3779b97f4a7c15u;
+		h->b ^= h->b >> 29;
+	}
+	h->len += len;
+}
+
+void rl_hash128_str(struct rl_hash128 *h, const char *s)
+{
+	rl_hash128_add(h, s ? s : "", (s ? strlen(s) : 0) + 1);
+}
+
+void rl_hash128_hex(const struct rl_hash128 *h, char out[33])
+{
+	uint64_t a = mix64(h->a ^ mix64(h->len)), b = mix64(h->b ^ a);
+	snprintf(out, 33, "%016llx%016llx", (unsigned long long)a, (unsigned long long)b);
+}

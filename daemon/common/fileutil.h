@@ -1,0 +1,53 @@
+/*
+ * Files: atomic writes, bounded reads, content hashes, and relight's cache
+ * directory. Nothing is lost: a write goes to a temporary file in the target's
+ * directory, is flushed to disk, and is renamed over the target, so a crash
+ * mid-write leaves the old file intact.
+ */
+#ifndef RL_FILEUTIL_H
+#define RL_FILEUTIL_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+/**
+ * Write @len bytes to @path atomically (temporary file, fsync, rename). On
+ * failure returns false with "PATH: reason" in @err (always NUL-terminated
+ * when @errlen > 0) and leaves any old file at @path untouched.
+ */
+bool rl_write_file_atomic(const char *path, const void *data, size_t len, char *err,
+			  size_t errlen);
+
+/**
+ * Read the whole file at @path (at most @maxlen bytes; larger files fail) into
+ * a malloc'd buffer with a NUL byte after its end. NULL on failure, with the
+ * reason in @err.
+ */
+char *rl_read_file(const char *path, size_t maxlen, size_t *len, char *err, size_t errlen);
+
+/** Create directory @path and its missing parents (mode 0777 & ~umask). */
+bool rl_mkdir_p(const char *path);
+
+/**
+ * relight's cache directory for @what (a subdirectory name such as "gl"),
+ * malloc'd, created if missing: $RELIGHT_CACHE_DIR/@what, else
+ * $XDG_CACHE_HOME/relight/@what, else $HOME/.cache/relight/@what. NULL when
+ * caching is off (RELIGHT_CACHE_DIR set to "" or "off") or no directory can
+ * be made.
+ */
+char *rl_cache_dir(const char *what);
+
+/** A 128-bit content hash, streamed: init, add bytes any number of times, finish. */
+struct rl_hash128 {
+	uint64_t a, b;
+	uint64_t len;
+};
+void rl_hash128_init(struct rl_hash128 *h);
+void rl_hash128_add(struct rl_hash128 *h, const void *data, size_t len);
+/** Add a NUL-terminated string and its terminator (so "ab","c" differs from "a","bc"). */
+void rl_hash128_str(struct rl_hash128 *h, const char *s);
+/** The hash as 32 lowercase hex digits and a NUL. */
+void rl_hash128_hex(const struct rl_hash128 *h, char out[33]);
+
+#endif
