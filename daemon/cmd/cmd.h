@@ -20,4 +20,16 @@ int cmd_compile(int argc, char **argv);
 /** `relight render`: render a RIB scene's frames to OpenEXR with the REYES renderer. */
 int cmd_render(int argc, char **argv);
 
+/** `relight diff`: compare two rendered images; print the errors, optionally a heat map PNG. */
+int cmd_diff(int argc, char **argv);
+
+/** `relight bake`: bake a RIB scene into a shot file for the preview. */
+int cmd_bake(int argc, char **argv);
+
+/** `relight info`: describe a shot file. */
+int cmd_info(int argc, char **argv);
+
+/** `relight preview`: relight a shot file headless (the CPU reference with --cpu). */
+int cmd_preview(int argc, char **argv);
+
 #endif

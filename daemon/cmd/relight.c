@@ -19,6 +19,10 @@ struct command {
 static const struct command commands[] = {
 	{ "compile", cmd_compile, "Check an RSL shader; print its AST, IR or a JSON report" },
 	{ "render", cmd_render, "Render a RIB scene to OpenEXR with the reference renderer" },
+	{ "bake", cmd_bake, "Bake a RIB scene into a shot file for interactive relighting" },
+	{ "info", cmd_info, "Describe a shot file: lights, surfaces, samples, entries, bytes" },
+	{ "preview", cmd_preview, "Relight a shot file and write the image (--cpu: the reference)" },
+	{ "diff", cmd_diff, "Compare two rendered images: errors, PSNR, a heat map" },
 };
 
 static const size_t ncommands = sizeof(commands) / sizeof(commands[0]);

@@ -50,6 +50,24 @@
  * axes, with weights from tables of reyes_filter_eval; the margin a bucket
  * samples is the pixels that can hold such samples, ceil(w/2 + 1/2) - 1 on
  * each side.
+ *
+ * Record mode (the bake's indirect framebuffer). A hit keeps, in place of
+ * colour and AOVs, the shading samples it interpolates: the ids id0 + k of
+ * the vertices of the triangle it lies in with their barycentric weights
+ * (the w[4] a smooth grid interpolates with, less the vertex that is 0), or
+ * vertex (i, j) alone with weight 1 when the grid is flat. Compositing gives
+ * each non-matte hit's vertices T times their weight, T the mean over the
+ * three channels of the transmittance in front of the hit (how AOVs
+ * composite); matte hits only attenuate. For grey opacity the three
+ * channels' transmittances are equal and sum(weight Ci) is the composited
+ * colour up to rounding; for coloured opacity it is what an AOV carrying
+ * Ci gives, not the per-channel colour. A pixel sums its samples'
+ * contributions with the filter weights, merging equal ids in a small
+ * open-addressing table, divides by the weight sum, drops exact zeros and
+ * sorts by id. Negative filter lobes (Catmull-Rom, sinc) give negative
+ * weights. A vertex whose id would pass 2^32 - 1 drops the micropolygons
+ * that use it (reported once). Alpha and depth go through the same
+ * arithmetic as in normal mode and come out bit-identical.
  */
 #include "hider.h"
 
@@ -79,6 +97,17 @@ struct hit {
 	uint32_t next;
 	float c[3], o[3];
 	bool matte;
+};
+
+/* Record mode: the shading samples a hit interpolates (weight 0: unused). */
+struct hit_ref {
+	uint32_t id[3];
+	float w[3];
+};
+
+/* Record mode: a pixel's table of ids, from id to its place in the dense list. */
+struct slot {
+	uint32_t id, gen, idx;
 };
 
 /* An edge function from the canonical (smaller) endpoint: cross(d, p - a). */
@@ -133,6 +162,24 @@ struct reyes_hider {
 	float *swx, *swy;     /* separable filter factors per sample */
 	size_t scratch_cap;
 	double *acc_aov;
+
+	/* record mode */
+	struct hit_ref *hit_ref;          /* per hit, beside hits */
+	float *salpha;                    /* per sample */
+	size_t *roff;                     /* sample si's contributions: [roff[si], roff[si + 1]) */
+	uint32_t *rid;
+	float *rw;
+	size_t rcap;
+	struct slot *slots;               /* the current pixel's ids, open addressing */
+	uint32_t slot_bits, gen;
+	uint32_t *cid;                    /* the current pixel's distinct ids and sums */
+	double *cw;
+	uint32_t cn;
+	uint32_t *off;                    /* reyes_hider_end_record's output */
+	size_t off_cap;
+	struct reyes_vis_entry *ent;
+	size_t ent_cap, nent;
+	bool warned_overflow, warned_entries, warned_mode;
 };
 
 /* ---- hashing ---- */
@@ -255,6 +302,16 @@ void reyes_hider_destroy(struct reyes_hider *h)
 	free(h->swx);
 	free(h->swy);
 	free(h->acc_aov);
+	free(h->hit_ref);
+	free(h->salpha);
+	free(h->roff);
+	free(h->rid);
+	free(h->rw);
+	free(h->slots);
+	free(h->cid);
+	free(h->cw);
+	free(h->off);
+	free(h->ent);
 	free(h);
 }
 
@@ -388,7 +445,9 @@ static uint32_t alloc_hit(struct reyes_hider *h)
 			return NIL;
 		uint32_t cap = h->hits_cap ? h->hits_cap * 2 : 4096;
 		h->hits = rl_xrealloc(h->hits, (size_t)cap * sizeof(*h->hits));
-		if (h->o.naov)
+		if (h->o.record)
+			h->hit_ref = rl_xrealloc(h->hit_ref, (size_t)cap * sizeof(*h->hit_ref));
+		else if (h->o.naov)
 			h->hit_aov = rl_xrealloc(h->hit_aov,
 						 (size_t)cap * h->o.naov * sizeof(*h->hit_aov));
 		h->hits_cap = cap;
@@ -478,11 +537,36 @@ static void sample_hit(struct reyes_hider *h, struct sample *s, float z, const s
 	struct hit *nh = &h->hits[ni];
 	nh->z = z;
 	nh->matte = g->matte;
-	for (int c = 0; c < 3; c++) {
-		nh->o[c] = o[c];
-		nh->c[c] = g->Ci ? plane_value(g->Ci + c * m->n, m, w) : 0.0f;
+	if (h->o.record) {
+		/* The vertices' ids instead of colour; add() checked they fit. */
+		struct hit_ref *r = &h->hit_ref[ni];
+		int k = 0;
+		if (!w) {
+			r->id[k] = g->id0 + m->q[0];
+			r->w[k++] = 1.0f;
+		} else {
+			for (int v = 0; v < 4 && k < 3; v++) {
+				if (w[v] != 0.0f) {
+					r->id[k] = g->id0 + m->q[v];
+					r->w[k++] = w[v];
+				}
+			}
+		}
+		for (; k < 3; k++) {
+			r->id[k] = 0;
+			r->w[k] = 0.0f;
+		}
+		for (int c = 0; c < 3; c++) {
+			nh->o[c] = o[c];
+			nh->c[c] = 0.0f;
+		}
+	} else {
+		for (int c = 0; c < 3; c++) {
+			nh->o[c] = o[c];
+			nh->c[c] = g->Ci ? plane_value(g->Ci + c * m->n, m, w) : 0.0f;
+		}
 	}
-	if (h->o.naov) {
+	if (h->o.naov && !h->o.record) {
 		float *a = h->hit_aov + (size_t)ni * h->o.naov;
 		for (uint32_t k = 0; k < h->o.naov; k++)
 			a[k] = g->aov && g->aov[k] ? plane_value(g->aov[k], m, w) : 0.0f;
@@ -677,6 +761,17 @@ static bool sample_range(double a, double b, uint32_t ns, uint32_t g0, uint32_t 
 	return *lo <= *hi;
 }
 
+static void id_overflow(struct reyes_hider *h, const struct reyes_hider_grid *g)
+{
+	if (h->warned_overflow)
+		return;
+	h->warned_overflow = true;
+	fprintf(stderr,
+		"relight: error: hider: shading sample ids pass 2^32 - 1 (a %ux%u grid from id "
+		"%u); its micropolygons past that are dropped\n",
+		g->nu, g->nv, g->id0);
+}
+
 void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 {
 	if (!h || !h->active || !g || g->nu < 2 || g->nv < 2 || !g->x[0] || !g->y[0] ||
@@ -694,6 +789,9 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 	uint32_t gx1 = h->gx0 + h->sw, gy1 = h->gy0 + h->sh;
 	struct mp_src m = { .g = g, .n = (size_t)g->nu * g->nv };
 	struct quad q;
+	/* Record mode: vertex k is shading sample id0 + k, so k < nid. */
+	bool record = o->record;
+	uint64_t nid = (uint64_t)UINT32_MAX - g->id0 + 1;
 
 	for (uint32_t j = 0; j + 1 < g->nv; j++) {
 		for (uint32_t i = 0; i + 1 < g->nu; i++) {
@@ -733,6 +831,11 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 			if (!sample_range(xmin, xmax, o->xsamples, h->gx0, gx1, &sx0, &sx1) ||
 			    !sample_range(ymin, ymax, o->ysamples, h->gy0, gy1, &sy0, &sy1))
 				continue;
+			/* q[2] is the quad's largest vertex index; flat shading uses q[0]. */
+			if (record && (g->smooth ? m.q[2] : m.q[0]) >= nid) {
+				id_overflow(h, g);
+				continue;
+			}
 
 			if (!moves) {
 				if (!quad_init(&q, vx, vy, g->cull_backfacing, g->flip))
@@ -832,6 +935,14 @@ static void axis_weights(struct reyes_hider *h)
 	}
 }
 
+/* Where the sample became opaque, or for midpoint halfway between its two nearest opaque hits. */
+static float sample_depth(const struct reyes_hider *h, const struct sample *s)
+{
+	if (h->o.depthfilter == REYES_DEPTH_MIDPOINT)
+		return s->zo[1] < INFINITY ? 0.5f * (s->zo[0] + s->zo[1]) : INFINITY;
+	return s->zopq;
+}
+
 /* Composite every sample of the region front to back. */
 static void composite(struct reyes_hider *h, size_t n)
 {
@@ -864,12 +975,37 @@ static void composite(struct reyes_hider *h, size_t n)
 		col[1] = C[1];
 		col[2] = C[2];
 		col[3] = (A[0] + A[1] + A[2]) * (1.0f / 3.0f);
-
-		float z = s->zopq;
-		if (h->o.depthfilter == REYES_DEPTH_MIDPOINT)
-			z = s->zo[1] < INFINITY ? 0.5f * (s->zo[0] + s->zo[1]) : INFINITY;
-		h->sz[si] = z;
+		h->sz[si] = sample_depth(h, s);
 	}
+}
+
+/*
+ * The samples pixel (x, y) filters: columns [sx0, sx1) and rows [sy0, sy1)
+ * of the region's sample grid. kx0 is which of the K pixel columns around
+ * sample column sx0 the pixel is (it steps down each time the stratum
+ * index, starting at i0, wraps).
+ */
+struct support {
+	uint32_t sx0, sx1, sy0, sy1, kx0, i0;
+};
+
+static void pixel_support(const struct reyes_hider *h, uint32_t x, uint32_t y, struct support *sp)
+{
+	uint32_t xs = h->o.xsamples, ys = h->o.ysamples;
+	float hw = h->hw, hh = h->hh;
+	float cx = (float)x + 0.5f, cy = (float)y + 0.5f;
+	/* Strata overlapping the support, within the region: stratum gx spans
+	 * (gx, gx + 1) / xsamples. */
+	int64_t gxl = (int64_t)floor(((double)cx - hw) * xs);
+	int64_t gxh = (int64_t)ceil(((double)cx + hw) * xs);
+	int64_t gyl = (int64_t)floor(((double)cy - hh) * ys);
+	int64_t gyh = (int64_t)ceil(((double)cy + hh) * ys);
+	sp->sx0 = gxl > (int64_t)h->gx0 ? (uint32_t)gxl - h->gx0 : 0;
+	sp->sy0 = gyl > (int64_t)h->gy0 ? (uint32_t)gyl - h->gy0 : 0;
+	sp->sx1 = gxh < (int64_t)h->gx0 + h->sw ? (uint32_t)gxh - h->gx0 : h->sw;
+	sp->sy1 = gyh < (int64_t)h->gy0 + h->sh ? (uint32_t)gyh - h->gy0 : h->sh;
+	sp->kx0 = x + h->mx - (h->gx0 + sp->sx0) / xs;
+	sp->i0 = (h->gx0 + sp->sx0) % xs;
 }
 
 /*
@@ -888,24 +1024,13 @@ static void filter_pixel(struct reyes_hider *h, uint32_t x, uint32_t y, float *r
 	bool radial = h->radial;
 	float hw = h->hw, hh = h->hh;
 	float cx = (float)x + 0.5f, cy = (float)y + 0.5f;
-	/*
-	 * Sample columns and rows whose strata overlap the support, within the
-	 * region: stratum gx spans (gx, gx + 1) / xsamples.
-	 */
-	int64_t gxl = (int64_t)floor(((double)cx - hw) * xs);
-	int64_t gxh = (int64_t)ceil(((double)cx + hw) * xs);
-	int64_t gyl = (int64_t)floor(((double)cy - hh) * ys);
-	int64_t gyh = (int64_t)ceil(((double)cy + hh) * ys);
-	uint32_t sx0 = gxl > (int64_t)h->gx0 ? (uint32_t)gxl - h->gx0 : 0;
-	uint32_t sy0 = gyl > (int64_t)h->gy0 ? (uint32_t)gyl - h->gy0 : 0;
-	uint32_t sx1 = gxh < (int64_t)h->gx0 + h->sw ? (uint32_t)gxh - h->gx0 : h->sw;
-	uint32_t sy1 = gyh < (int64_t)h->gy0 + h->sh ? (uint32_t)gyh - h->gy0 : h->sh;
+	struct support sp;
+	pixel_support(h, x, y, &sp);
+	uint32_t sx0 = sp.sx0, sx1 = sp.sx1, sy0 = sp.sy0, sy1 = sp.sy1, kx0 = sp.kx0, i0 = sp.i0;
 	double acc[4] = { 0, 0, 0, 0 }, wsum = 0.0;
 
 	for (uint32_t k = 0; k < naov; k++)
 		acc_aov[k] = 0.0;
-	/* kx: which of the K pixel columns around a sample this pixel is. */
-	uint32_t kx0 = x + h->mx - (h->gx0 + sx0) / xs, i0 = (h->gx0 + sx0) % xs;
 	for (uint32_t sy = sy0; sy < sy1; sy++) {
 		uint32_t ky = y + h->my - (h->gy0 + sy) / ys;
 		size_t rowi = (size_t)sy * h->sw;
@@ -984,6 +1109,44 @@ static float pixel_depth(const struct reyes_hider *h, uint32_t x, uint32_t y)
 	return z < INFINITY ? z : NO_DEPTH;
 }
 
+/* Per-sample scratch for resolving @n samples (the mode's own arrays). */
+static void grow_scratch(struct reyes_hider *h, size_t n)
+{
+	if (n <= h->scratch_cap)
+		return;
+	uint32_t K = 2 * h->mx + 1, L = 2 * h->my + 1, naov = h->o.naov;
+	free(h->scol);
+	free(h->saov);
+	free(h->sz);
+	free(h->swx);
+	free(h->swy);
+	free(h->salpha);
+	free(h->roff);
+	h->scol = h->saov = h->salpha = NULL;
+	h->roff = NULL;
+	if (h->o.record) {
+		h->salpha = rl_xmalloc(n * sizeof(float));
+		h->roff = rl_xmalloc((n + 1) * sizeof(*h->roff));
+	} else {
+		h->scol = rl_xmalloc(n * 4 * sizeof(float));
+		h->saov = naov ? rl_xmalloc(n * naov * sizeof(float)) : NULL;
+	}
+	h->sz = rl_xmalloc(n * sizeof(float));
+	h->swx = rl_xmalloc(n * K * sizeof(float));
+	h->swy = rl_xmalloc(n * L * sizeof(float));
+	h->scratch_cap = n;
+}
+
+/* Report a call the hider's mode does not allow, once per hider. */
+static void wrong_mode(struct reyes_hider *h, const char *call)
+{
+	if (h->warned_mode)
+		return;
+	h->warned_mode = true;
+	fprintf(stderr, "relight: error: hider: %s on a hider %s record mode\n", call,
+		h->o.record ? "in" : "not in");
+}
+
 uint64_t reyes_hider_end(struct reyes_hider *h, float *rgba, float *zout, float *aovout)
 {
 	if (!h || !h->active)
@@ -994,8 +1157,11 @@ uint64_t reyes_hider_end(struct reyes_hider *h, float *rgba, float *zout, float 
 	size_t n = (size_t)h->sw * h->sh;
 	h->active = false;
 
-	if (h->inserted == 0) {
-		/* Nothing was hit: skip the filter. */
+	if (h->inserted == 0 || o->record) {
+		/* Nothing was hit (or a record-mode hider, which has no
+		 * colours): empty pixels, without the filter. */
+		if (o->record)
+			wrong_mode(h, "reyes_hider_end");
 		for (uint32_t y = h->py0; y < h->py1; y++) {
 			for (uint32_t x = h->px0; x < h->px1; x++) {
 				size_t p = (size_t)(y - h->py0) * bw + (x - h->px0);
@@ -1007,23 +1173,10 @@ uint64_t reyes_hider_end(struct reyes_hider *h, float *rgba, float *zout, float 
 					memset(aovout + p * naov, 0, naov * sizeof(float));
 			}
 		}
-		return n;
+		return o->record ? 0 : n;
 	}
 
-	uint32_t K = 2 * h->mx + 1, L = 2 * h->my + 1;
-	if (n > h->scratch_cap) {
-		free(h->scol);
-		free(h->saov);
-		free(h->sz);
-		free(h->swx);
-		free(h->swy);
-		h->scol = rl_xmalloc(n * 4 * sizeof(float));
-		h->saov = naov ? rl_xmalloc(n * naov * sizeof(float)) : NULL;
-		h->sz = rl_xmalloc(n * sizeof(float));
-		h->swx = rl_xmalloc(n * K * sizeof(float));
-		h->swy = rl_xmalloc(n * L * sizeof(float));
-		h->scratch_cap = n;
-	}
+	grow_scratch(h, n);
 	composite(h, n);
 	if (!h->radial)
 		axis_weights(h);
@@ -1038,5 +1191,279 @@ uint64_t reyes_hider_end(struct reyes_hider *h, float *rgba, float *zout, float 
 				zout[p] = pixel_depth(h, x, y);
 		}
 	}
+	return n;
+}
+
+/* ---- record mode ---- */
+
+/*
+ * Composite every sample of the region front to back into its list of
+ * (id, weight) contributions, its alpha (as composite() computes it) and
+ * its depth.
+ */
+static void composite_record(struct reyes_hider *h, size_t n)
+{
+	/* At most three vertices per hit that is still in a list. */
+	size_t need = (size_t)h->nhits * 3;
+	if (need > h->rcap) {
+		free(h->rid);
+		free(h->rw);
+		h->rid = rl_xmalloc(need * sizeof(*h->rid));
+		h->rw = rl_xmalloc(need * sizeof(*h->rw));
+		h->rcap = need;
+	}
+	uint32_t *rid = h->rid;
+	float *rw = h->rw;
+	size_t nr = 0;
+	for (size_t si = 0; si < n; si++) {
+		const struct sample *s = &h->samp[si];
+		float T[3] = { 1.0f, 1.0f, 1.0f }, A[3] = { 0, 0, 0 };
+		h->roff[si] = nr;
+		for (uint32_t i = s->head; i != NIL; i = h->hits[i].next) {
+			const struct hit *c = &h->hits[i];
+			if (!c->matte) {
+				float tm = (T[0] + T[1] + T[2]) * (1.0f / 3.0f);
+				const struct hit_ref *r = &h->hit_ref[i];
+				for (int k = 0; k < 3; k++) {
+					A[k] += T[k] * c->o[k];
+					float v = tm * r->w[k];
+					if (v != 0.0f) {
+						rid[nr] = r->id[k];
+						rw[nr++] = v;
+					}
+				}
+			}
+			for (int k = 0; k < 3; k++)
+				T[k] *= 1.0f - c->o[k];
+		}
+		h->salpha[si] = (A[0] + A[1] + A[2]) * (1.0f / 3.0f);
+		h->sz[si] = sample_depth(h, s);
+	}
+	h->roff[n] = nr;
+}
+
+/* Start a pixel's table of ids empty (stale slots are told by their generation). */
+static void acc_clear(struct reyes_hider *h)
+{
+	h->cn = 0;
+	if (++h->gen == 0) {
+		memset(h->slots, 0, ((size_t)1 << h->slot_bits) * sizeof(*h->slots));
+		h->gen = 1;
+	}
+}
+
+static inline uint32_t slot_of(uint32_t id, uint32_t bits)
+{
+	return (uint32_t)(id * 0x9e3779b1u) >> (32 - bits);
+}
+
+/* Double the table (and the dense list) and put the pixel's ids back. */
+static void acc_grow(struct reyes_hider *h)
+{
+	uint32_t bits = h->slot_bits ? h->slot_bits + 1 : 6;
+	size_t cap = (size_t)1 << bits;
+	free(h->slots);
+	h->slots = rl_xcalloc(cap, sizeof(*h->slots));
+	h->slot_bits = bits;
+	h->gen = 1;
+	h->cid = rl_xrealloc(h->cid, cap / 2 * sizeof(*h->cid));
+	h->cw = rl_xrealloc(h->cw, cap / 2 * sizeof(*h->cw));
+	uint32_t mask = (uint32_t)cap - 1;
+	for (uint32_t k = 0; k < h->cn; k++) {
+		uint32_t p = slot_of(h->cid[k], bits);
+		while (h->slots[p].gen == h->gen)
+			p = (p + 1) & mask;
+		h->slots[p] = (struct slot){ .id = h->cid[k], .gen = h->gen, .idx = k };
+	}
+}
+
+/* Add @w to the pixel's sum for @id. */
+static inline void acc_add(struct reyes_hider *h, uint32_t id, double w)
+{
+	uint32_t bits = h->slot_bits, mask = ((uint32_t)1 << bits) - 1, gen = h->gen;
+	struct slot *slots = h->slots;
+	for (uint32_t p = slot_of(id, bits);; p = (p + 1) & mask) {
+		struct slot *sl = &slots[p];
+		if (sl->gen != gen) {
+			uint32_t k = h->cn++;
+			*sl = (struct slot){ .id = id, .gen = gen, .idx = k };
+			h->cid[k] = id;
+			h->cw[k] = w;
+			/* Keep the table at most half full. */
+			if ((size_t)h->cn * 2 >= (size_t)1 << bits)
+				acc_grow(h);
+			return;
+		}
+		if (sl->id == id) {
+			h->cw[sl->idx] += w;
+			return;
+		}
+	}
+}
+
+static int entry_cmp(const void *a, const void *b)
+{
+	uint32_t x = ((const struct reyes_vis_entry *)a)->id;
+	uint32_t y = ((const struct reyes_vis_entry *)b)->id;
+	return (x > y) - (x < y);
+}
+
+/* Insertion sort for the usual few dozen entries, qsort past that. */
+static void sort_entries(struct reyes_vis_entry *e, size_t n)
+{
+	if (n > 64) {
+		qsort(e, n, sizeof(*e), entry_cmp);
+		return;
+	}
+	for (size_t i = 1; i < n; i++) {
+		struct reyes_vis_entry v = e[i];
+		size_t j = i;
+		for (; j > 0 && e[j - 1].id > v.id; j--)
+			e[j] = e[j - 1];
+		e[j] = v;
+	}
+}
+
+/*
+ * Pixel (x, y)'s entries, appended to h->ent, and its alpha: the samples
+ * and weights of filter_pixel, in the same order.
+ */
+static void record_pixel(struct reyes_hider *h, uint32_t x, uint32_t y, float *alpha)
+{
+	const struct reyes_hider_opts *o = &h->o;
+	uint32_t xs = o->xsamples, ys = o->ysamples;
+	uint32_t K = 2 * h->mx + 1, L = 2 * h->my + 1;
+	const struct sample *samp = h->samp;
+	const float *sa = h->salpha, *swx = h->swx, *swy = h->swy, *rw = h->rw;
+	const size_t *roff = h->roff;
+	const uint32_t *rid = h->rid;
+	bool radial = h->radial;
+	float hw = h->hw, hh = h->hh;
+	float cx = (float)x + 0.5f, cy = (float)y + 0.5f;
+	struct support sp;
+	pixel_support(h, x, y, &sp);
+	double acc = 0.0, wsum = 0.0;
+
+	acc_clear(h);
+	for (uint32_t sy = sp.sy0; sy < sp.sy1; sy++) {
+		uint32_t ky = y + h->my - (h->gy0 + sy) / ys;
+		size_t rowi = (size_t)sy * h->sw;
+		uint32_t kx = sp.kx0, i = sp.i0;
+		for (uint32_t sx = sp.sx0; sx < sp.sx1; sx++) {
+			size_t si = rowi + sx;
+			float w;
+			if (radial) {
+				float dx = samp[si].x - cx, dy = samp[si].y - cy;
+				bool in = dx >= -hw && dx < hw && dy >= -hh && dy < hh;
+				w = in ? radial_weight(h, dx, dy) : 0.0f;
+			} else {
+				w = swx[si * K + kx] * swy[si * L + ky];
+			}
+			if (++i == xs) {
+				i = 0;
+				kx--;
+			}
+			if (w == 0.0f)
+				continue;
+			acc += (double)w * sa[si];
+			wsum += w;
+			for (size_t c = roff[si]; c < roff[si + 1]; c++)
+				acc_add(h, rid[c], (double)w * rw[c]);
+		}
+	}
+	double inv = wsum != 0.0 ? 1.0 / wsum : 0.0;
+	if (alpha)
+		*alpha = (float)(acc * inv);
+
+	if (h->nent + h->cn > UINT32_MAX) {
+		if (!h->warned_entries)
+			fprintf(stderr, "relight: error: hider: more than 2^32 - 1 entries in a "
+					"bucket; pixels past that are left empty\n");
+		h->warned_entries = true;
+		return;
+	}
+	if (h->nent + h->cn > h->ent_cap) {
+		size_t cap = h->ent_cap ? h->ent_cap : 4096;
+		while (cap < h->nent + h->cn)
+			cap *= 2;
+		h->ent = rl_xrealloc(h->ent, cap * sizeof(*h->ent));
+		h->ent_cap = cap;
+	}
+	struct reyes_vis_entry *e = h->ent + h->nent;
+	size_t ne = 0;
+	for (uint32_t k = 0; k < h->cn; k++) {
+		float v = (float)(h->cw[k] * inv);
+		if (v != 0.0f && isfinite(v))
+			e[ne++] = (struct reyes_vis_entry){ .id = h->cid[k], .weight = v };
+	}
+	sort_entries(e, ne);
+	h->nent += ne;
+}
+
+/* Offsets for @npix pixels, all 0 (nothing recorded). */
+static void empty_record(struct reyes_hider *h, size_t npix)
+{
+	if (npix + 1 > h->off_cap) {
+		free(h->off);
+		h->off = rl_xmalloc((npix + 1) * sizeof(*h->off));
+		h->off_cap = npix + 1;
+	}
+	memset(h->off, 0, (npix + 1) * sizeof(*h->off));
+	h->nent = 0;
+}
+
+uint64_t reyes_hider_end_record(struct reyes_hider *h, const uint32_t **offsets,
+				const struct reyes_vis_entry **entries, float *alpha, float *zout)
+{
+	static const uint32_t no_offsets[1];
+	static const struct reyes_vis_entry no_entries[1];
+	if (offsets)
+		*offsets = no_offsets;
+	if (entries)
+		*entries = no_entries;
+	if (!h)
+		return 0;
+	uint32_t bw = h->px1 - h->px0, bh = h->py1 - h->py0;
+	size_t npix = (size_t)bw * bh;
+	size_t n = (size_t)h->sw * h->sh;
+	bool active = h->active;
+	h->active = false;
+
+	empty_record(h, npix);
+	if (offsets)
+		*offsets = h->off;
+	if (entries)
+		*entries = h->ent ? h->ent : no_entries;
+	if (!active)
+		return 0;
+	if (!h->o.record)
+		wrong_mode(h, "reyes_hider_end_record");
+	if (h->inserted == 0 || !h->o.record) {
+		for (size_t p = 0; p < npix; p++) {
+			if (alpha)
+				alpha[p] = 0.0f;
+			if (zout)
+				zout[p] = NO_DEPTH;
+		}
+		return h->o.record ? n : 0;
+	}
+
+	grow_scratch(h, n);
+	composite_record(h, n);
+	if (!h->radial)
+		axis_weights(h);
+	if (!h->slots)
+		acc_grow(h);
+	for (uint32_t y = h->py0; y < h->py1; y++) {
+		for (uint32_t x = h->px0; x < h->px1; x++) {
+			size_t p = (size_t)(y - h->py0) * bw + (x - h->px0);
+			record_pixel(h, x, y, alpha ? alpha + p : NULL);
+			h->off[p + 1] = (uint32_t)h->nent;
+			if (zout)
+				zout[p] = pixel_depth(h, x, y);
+		}
+	}
+	if (entries)
+		*entries = h->ent ? h->ent : no_entries;
 	return n;
 }

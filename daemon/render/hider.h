@@ -24,6 +24,10 @@ struct reyes_hider_opts {
 	float opacity_threshold;          /* compositing stops at this opacity (all channels) */
 	enum reyes_depthfilter depthfilter;
 	uint32_t naov;                    /* extra channels carried per vertex and per pixel */
+	/* Bake mode (lightspeed-2007 §3.4): record, per pixel, the linear weight of
+	 * every shaded grid vertex that reaches it (reyes_hider_end_record). Grids
+	 * then need no Ci (it may be NULL) and no AOVs; Oi is used as usual. */
+	bool record;
 };
 
 /**
@@ -44,6 +48,15 @@ struct reyes_hider_grid {
 	bool cull_backfacing;             /* Sides 1: drop micropolygons facing away */
 	bool flip;                        /* reverse the facing test (Orientation) */
 	bool matte;                       /* hides what is behind but adds no colour (alpha 0) */
+	uint32_t id0;                     /* record mode: vertex k is shading sample id0 + k;
+					     micropolygons using an id past 2^32 - 1 are
+					     dropped (reported once) */
+};
+
+/** One entry of a pixel's recipe: shading sample @id contributes @weight times its Ci. */
+struct reyes_vis_entry {
+	uint32_t id;
+	float weight;
 };
 
 struct reyes_hider;
@@ -72,8 +85,35 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g);
  * pixel's samples by depthfilter; 1e30 where nothing was hit), @aov naov
  * floats per pixel; each image is row-major over the bucket (width px1 - px0).
  * Any of them may be NULL. Returns the number of subpixel samples taken.
+ * A record-mode hider has no colours: it reports an error (once), gives
+ * empty pixels (0, depth 1e30) and returns 0.
  */
 uint64_t reyes_hider_end(struct reyes_hider *h, float *rgba, float *z, float *aov);
+
+/**
+ * Finish the bucket in record mode: each of its pixels as the list of
+ * shading samples it is made of, so that for any colours Ci given to the
+ * vertices, sum(weight * Ci[id]) over a pixel's entries is the colour
+ * reyes_hider_end would give. A weight is filter weight x subpixel
+ * coverage x the transmittance in front of the hit x the vertex's
+ * interpolation weight, over the pixel's filter-normalised samples. Entries
+ * of one id are merged (one entry per id per pixel); matte hits give no
+ * entry but still hide what is behind. Transmittance is the mean of the
+ * three channels' transmittance, as AOVs composite: exact for grey opacity;
+ * for coloured opacity the sum is what an AOV carrying Ci would give.
+ * Weights are finite and nonzero; negative filter lobes (Catmull-Rom,
+ * sinc) make negative ones. Pixel p of the bucket (row-major, width
+ * px1 - px0) has entries [offsets[p], offsets[p + 1]), sorted by id;
+ * @offsets and @entries are the hider's and stay valid until the next
+ * reyes_hider_begin. @alpha (1 float per pixel) and @z (may be NULL) are
+ * bit-identical to reyes_hider_end's alpha and depth. Returns the number of
+ * subpixel samples taken. With no bucket begun, after the bucket was
+ * finished, or on a hider not in record mode (an error, reported once), it
+ * returns 0 and every pixel's list is empty (the latter also sets alpha 0
+ * and depth 1e30); *offsets and *entries are always set (when not NULL).
+ */
+uint64_t reyes_hider_end_record(struct reyes_hider *h, const uint32_t **offsets,
+				const struct reyes_vis_entry **entries, float *alpha, float *z);
 
 /** The filter's weight at offset (dx, dy) pixels from a pixel's centre. */
 float reyes_filter_eval(enum reyes_filter f, float dx, float dy, float xwidth, float ywidth);

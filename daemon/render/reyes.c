@@ -479,7 +479,14 @@ static struct sl_exec *exec_for(struct tctx *t, const struct reyes_shader *sh)
 	for (size_t i = 0; i < t->nexecs; i++)
 		if (t->execs[i].sh == sh)
 			return t->execs[i].x;
-	struct sl_exec *x = sl_exec_create(sh->prog, t->r->max_points);
+	const struct reyes_bake_hooks *bk = t->r->o->bake;
+	const struct sl_program *prog = sh->prog;
+	if (bk && sh->prog->kind == SL_SHADER_SURFACE) {
+		prog = bk->program(bk->user, sh);
+		if (!prog)
+			return NULL;
+	}
+	struct sl_exec *x = sl_exec_create(prog, t->r->max_points);
 	if (!x)
 		return NULL;
 	if (t->nexecs == t->capexecs)
@@ -951,7 +958,19 @@ static bool shade_job(struct tctx *t, struct job *job)
 		}
 		z1[k] = zz;
 	}
-	get_global(sx, SL_GLOBAL_CI, ci, 3, n);
+	const struct reyes_bake_hooks *bk = r->o->bake;
+	if (bk) {
+		sh->hg.id0 = bk->grid(bk->user, surf, prim, sx, n);
+		if (sh->hg.id0 == UINT32_MAX) {
+			free(mem);
+			free(sh);
+			ok = false;
+			goto done;
+		}
+		memset(ci, 0, sizeof(float) * 3 * n);
+	} else {
+		get_global(sx, SL_GLOBAL_CI, ci, 3, n);
+	}
 	get_global(sx, SL_GLOBAL_OI, oi, 3, n);
 	for (uint32_t q = 0; q < r->naov; q++) {
 		const struct aov *av = &r->aovs[q];
@@ -1043,8 +1062,18 @@ static void hide_bucket(struct tctx *t, uint32_t bx)
 			continue;
 		reyes_hider_add(t->hider, &j->sh->hg);
 	}
-	t->samples += reyes_hider_end(t->hider, t->bucket_rgba, t->bucket_z, t->bucket_aov);
 	uint32_t w = x1 - x0;
+	const struct reyes_bake_hooks *bk = r->o->bake;
+	if (bk) {
+		const uint32_t *offsets;
+		const struct reyes_vis_entry *entries;
+		t->samples += reyes_hider_end_record(t->hider, &offsets, &entries, t->bucket_rgba,
+						     t->bucket_z);
+		if (!bk->bucket(bk->user, x0, y0, x1, y1, offsets, entries, t->bucket_rgba))
+			atomic_store(&r->failed, true);
+		return;
+	}
+	t->samples += reyes_hider_end(t->hider, t->bucket_rgba, t->bucket_z, t->bucket_aov);
 	uint32_t W = (uint32_t)r->cam.xres;
 	for (uint32_t y = y0; y < y1; y++) {
 		memcpy(r->rgba + ((size_t)y * W + x0) * 4, t->bucket_rgba + (size_t)(y - y0) * w * 4,
@@ -1313,6 +1342,17 @@ static uint64_t peak_rss(void)
 	return (uint64_t)ru.ru_maxrss * 1024u;
 }
 
+bool reyes_scene_is_shadow_pass(const struct reyes_scene *scene)
+{
+	const struct reyes_options *so = &scene->opts;
+	bool shadow_pass = so->ndisplays > 0;
+	for (uint32_t i = 0; i < so->ndisplays; i++)
+		if (strcmp(so->displays[i].type, "zfile") && strcmp(so->displays[i].type, "shadow") &&
+		    strcmp(so->displays[i].mode, "z"))
+			shadow_pass = false;
+	return shadow_pass;
+}
+
 bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opts *opts,
 		  struct reyes_stats *stats)
 {
@@ -1374,11 +1414,7 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	 * that cast no shadows (Attribute "visibility" "transmission" 0) stay
 	 * out of it.
 	 */
-	bool shadow_pass = so->ndisplays > 0;
-	for (uint32_t i = 0; i < so->ndisplays; i++)
-		if (strcmp(so->displays[i].type, "zfile") && strcmp(so->displays[i].type, "shadow") &&
-		    strcmp(so->displays[i].mode, "z"))
-			shadow_pass = false;
+	bool shadow_pass = reyes_scene_is_shadow_pass(scene);
 
 	/* pieces -> jobs */
 	struct reyes_patch *pieces = NULL;
@@ -1416,7 +1452,8 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 		.filter = so->filter, .filter_width = { so->filter_width[0], so->filter_width[1] },
 		.jitter = so->jitter, .seed = 1,
 		.opacity_threshold = so->opacity_threshold > 0 ? so->opacity_threshold : 0.996f,
-		.depthfilter = so->depthfilter, .naov = r.naov_planes,
+		.depthfilter = so->depthfilter, .naov = opts->bake ? 0 : r.naov_planes,
+		.record = opts->bake != NULL,
 	};
 	r.ctx = calloc(r.nthreads, sizeof(*r.ctx));
 	for (uint32_t i = 0; ok && i < r.nthreads; i++) {
@@ -1454,6 +1491,10 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 			if (r.jobs[i].sh && r.jobs[i].row0 <= r.row && r.jobs[i].row1 >= r.row)
 				r.active[r.nactive++] = i;
 		run_threads(&r, hide_worker);
+		if (atomic_load(&r.failed)) {
+			ok = false;
+			break;
+		}
 		for (size_t i = 0; i < r.njobs; i++)
 			if (r.jobs[i].row1 <= r.row)
 				free_shaded(&r.jobs[i]);
@@ -1468,7 +1509,7 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 		samples += t->samples;
 	}
 	/* displays */
-	for (uint32_t i = 0; ok && i < so->ndisplays; i++)
+	for (uint32_t i = 0; ok && !opts->bake && i < so->ndisplays; i++)
 		if (!write_display(&r, &so->displays[i]))
 			ok = false;
 

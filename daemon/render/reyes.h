@@ -9,8 +9,41 @@
 #define REYES_H
 
 #include "scene.h"
+#include "hider.h"
 
 #include <stdio.h>
+
+struct sl_exec;
+
+/**
+ * Bake mode (lightspeed-2007 §3.4): the renderer runs, instead of each
+ * surface shader, the program the bake gives for it (its caching program),
+ * hands every shaded grid to @grid, which keeps the values it wants and
+ * numbers the grid's vertices, and records, instead of colours, which
+ * shading samples make up each pixel (@bucket). Callbacks run on the
+ * renderer's threads, several at once.
+ */
+struct reyes_bake_hooks {
+	void *user;
+	/** The program to run for surface @surf (NULL: the bake fails). */
+	const struct sl_program *(*program)(void *user, const struct reyes_shader *surf);
+	/**
+	 * A grid of @n points was shaded with @x (which ran program(surf); its
+	 * registers hold the results, planar with sl_exec_stride). @prim is the
+	 * primitive it came from. Return the id of its first vertex (vertex k is
+	 * id0 + k), or UINT32_MAX to fail the bake.
+	 */
+	uint32_t (*grid)(void *user, const struct reyes_shader *surf, const struct reyes_prim *prim,
+			 struct sl_exec *x, uint32_t n);
+	/**
+	 * The bucket of pixels [x0, x1) x [y0, y1) is done: its pixels' entries
+	 * and alpha as reyes_hider_end_record gives them (row-major over the
+	 * bucket). False fails the bake.
+	 */
+	bool (*bucket)(void *user, uint32_t x0, uint32_t y0, uint32_t x1, uint32_t y1,
+		       const uint32_t *offsets, const struct reyes_vis_entry *entries,
+		       const float *alpha);
+};
 
 struct reyes_render_opts {
 	uint32_t threads;          /* 0: all cores */
@@ -21,6 +54,8 @@ struct reyes_render_opts {
 	const char *texture_path;  /* for the texture system, NULL: the scene's option */
 	/* Crop in pixels, overriding the scene's CropWindow when x1 > x0 (relight render --crop). */
 	uint32_t crop_x0, crop_x1, crop_y0, crop_y1;
+	/* Bake instead of rendering (no display is written). NULL: render. */
+	const struct reyes_bake_hooks *bake;
 };
 
 /** What a render did, for the summary line and the benchmark. */
@@ -39,5 +74,11 @@ struct reyes_stats {
  */
 bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opts *opts,
 		  struct reyes_stats *stats);
+
+/**
+ * Is @scene's frame a shadow pass (every display a depth map)? Objects that
+ * cast no shadows stay out of it, and the bake renders it as it is.
+ */
+bool reyes_scene_is_shadow_pass(const struct reyes_scene *scene);
 
 #endif

@@ -72,6 +72,7 @@ struct sl_exec_private {
 	uint8_t *llit[2];
 	float *regblock;        /* storage of all numeric registers */
 	const char **strblock;  /* storage of all string registers */
+	uint8_t *held;          /* per register: its value is the host's (sl_exec_hold) */
 	bool running;
 	bool warned_noloc;
 };
@@ -832,6 +833,7 @@ struct sl_exec *sl_exec_create(const struct sl_program *prog, uint32_t maxpoints
 	x->warned = rl_xcalloc(prog->ncode + 1, 1);
 	x->strings = rl_arena_create();
 	p->pvals = rl_xcalloc(prog->nparams + 1, sizeof(struct pval));
+	p->held = rl_xcalloc(prog->nregs + 1, 1);
 	p->iters = rl_xcalloc(prog->ncode + 1, sizeof(uint32_t));
 
 	p->maxframes = maxdepth;
@@ -883,6 +885,7 @@ void sl_exec_destroy(struct sl_exec *x)
 		}
 		free(p->regblock);
 		free(p->strblock);
+		free(p->held);
 		free(p);
 	}
 	free(x->data);
@@ -954,6 +957,14 @@ const uint8_t *sl_exec_lit_mask(const struct sl_exec *x)
 bool sl_exec_is_ambient(const struct sl_exec *x)
 {
 	return !x->ran_illuminate;
+}
+
+bool sl_exec_hold(struct sl_exec *x, int32_t reg, bool hold)
+{
+	if (!x || !reg_ok(x->prog, reg) || x->prog->regs[reg].kind == SL_REG_CONST)
+		return false;
+	x->priv->held[reg] = hold;
+	return true;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -2197,7 +2208,7 @@ static void run_range(struct sl_exec *x, uint32_t pc, uint32_t end)
 static void fill_global(struct sl_exec *x, enum sl_global g, float v)
 {
 	int32_t r = x->prog->global_reg[g];
-	if (r < 0)
+	if (r < 0 || x->priv->held[r])
 		return;
 	uint32_t per = sl_x_varying(x, r) ? x->n : 1;
 	for (int c = 0; c < global_ncomp[g]; c++) {
@@ -2234,7 +2245,7 @@ bool sl_exec_run(struct sl_exec *x, const struct sl_host *host)
 	/* No string register may keep a pointer into the strings just freed. */
 	for (uint32_t r = 0; r < prog->nregs; r++) {
 		const struct sl_reg *g = &prog->regs[r];
-		if (g->type != SL_TYPE_STRING || g->kind == SL_REG_CONST)
+		if (g->type != SL_TYPE_STRING || g->kind == SL_REG_CONST || p->held[r])
 			continue;
 		size_t cnt = (size_t)reg_total(g) * (g->varying ? x->stride : 1);
 		for (size_t i = 0; i < cnt; i++)
@@ -2254,6 +2265,8 @@ bool sl_exec_run(struct sl_exec *x, const struct sl_host *host)
 	struct xform t;
 	bool have_t = false;
 	for (uint32_t k = 0; k < prog->nparams && !x->failed; k++) {
+		if (p->held[prog->params[k].reg])
+			continue;
 		if (x->param_set[k])
 			load_param(x, k, &t, &have_t);
 		else

@@ -134,6 +134,19 @@ bool sl_exec_set_param_string(struct sl_exec *x, const char *name, const char *v
 /** Forget all values set by sl_exec_set_param*(): defaults apply again. */
 void sl_exec_reset_params(struct sl_exec *x);
 
+/**
+ * Hold register @reg (@hold true) or release it: the host writes a held
+ * register's value itself, through sl_exec_reg() or sl_exec_reg_strings(),
+ * and sl_exec_run() leaves it as written: a held parameter's default does
+ * not run and a value set with sl_exec_set_param() is ignored; a held Ci or
+ * Oi is not reset; a held string register is not cleared (its strings must
+ * outlive the run). The program's own instructions may still write it.
+ * Used to run code that reads values computed elsewhere (the dynamic part
+ * of a specialized shader, spec.h). False for a constant or a register
+ * the program does not have.
+ */
+bool sl_exec_hold(struct sl_exec *x, int32_t reg, bool hold);
+
 /** Which shader a message-passing call reaches: surface(), displacement(), ... */
 enum sl_peer { SL_PEER_SURFACE, SL_PEER_DISPLACEMENT, SL_PEER_ATMOSPHERE, SL_PEER_COUNT };
 /** Let this shader read @peer's parameters by message passing (NULL to unset). */

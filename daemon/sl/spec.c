@@ -3,12 +3,14 @@
  *
  * Dynamic: a register is dynamic if a dynamic instruction writes it; an
  * instruction is dynamic if it reads a dynamic register, calls a built-in
- * that reads the lights, or writes a variable under dynamic control (inside
+ * that reads the lights, writes a dynamic register (a variable is computed
+ * wholly by one part), or writes a variable under dynamic control (inside
  * an illuminance statement, or an if/loop whose condition is dynamic, or a
- * block some points leave early under dynamic control). Temporaries that are
- * written once are exempt from the control rule: whether they are computed
- * depends on the branch, but not their value, so the caching program can
- * compute them on both sides of a dynamic branch.
+ * loop with dynamic code inside, or a block some points leave early under
+ * dynamic control). Temporaries that are written once are exempt from the
+ * control rule: whether they are computed depends on the branch, but not
+ * their value, so the caching program can compute them on both sides of a
+ * dynamic branch.
  *
  * Live: an instruction is live if it writes a register that reaches an
  * output (Ci, Oi, output parameters) or has a side effect; a block is live
@@ -19,6 +21,9 @@
  */
 #include "spec.h"
 #include "builtin.h"
+#include "ctx.h"
+#include "exec_impl.h"
+#include "sema.h"
 #include "../common/strbuf.h"
 
 #include <stdlib.h>
@@ -132,6 +137,20 @@ static void set_reg(struct state *st, int32_t r)
 	}
 }
 
+/*
+ * Dynamic code inside a loop runs once per iteration: what changes from one
+ * iteration to the next (the counter, the condition) cannot be one cached
+ * value, so the loops around dynamic code are under dynamic control.
+ */
+static void in_dynamic_loops(struct state *st)
+{
+	for (size_t k = 0; k < st->stack.len; k++) {
+		int32_t at = st->stack.data[k].at;
+		if (st->prog->code[at].op == SL_OP_LOOP)
+			set_block(st, at);
+	}
+}
+
 /* One forward pass of the dynamic fixpoint. */
 static void dyn_pass(struct state *st)
 {
@@ -143,8 +162,10 @@ static void dyn_pass(struct state *st)
 		int32_t at = (int32_t)i;
 		switch (in->op) {
 		case SL_OP_IF:
-			if (s->reg_dynamic[in->args[0]])
-				s->dynamic[i] = 1;
+			if (s->reg_dynamic[in->args[0]]) {
+				s->insn_dynamic[i] = 1;
+				in_dynamic_loops(st);
+			}
 			push(st, at, s->reg_dynamic[in->args[0]]);
 			continue;
 		case SL_OP_LOOP:
@@ -153,7 +174,8 @@ static void dyn_pass(struct state *st)
 			continue;
 		case SL_OP_ILLUMINANCE:
 			/* which lights reach a point, and L, Cl, Ol: all light-dependent */
-			s->dynamic[i] = 1;
+			s->insn_dynamic[i] = 1;
+			in_dynamic_loops(st);
 			push(st, at, true);
 			continue;
 		case SL_OP_ILLUMINATE:
@@ -218,15 +240,25 @@ static void dyn_pass(struct state *st)
 				if (arg_is_output(in, k))
 					dyn = true;
 		}
+		/* A register is either cached (one value per sample, computed
+		 * before the dynamic part runs) or computed by the dynamic part:
+		 * every write of a dynamic variable is dynamic, its static start
+		 * value included (color C = Cs; illuminance (...) C += ...). */
+		if (in->dst >= 0 && s->reg_dynamic[in->dst])
+			dyn = true;
+		for (int k = 0; k < in->nargs; k++)
+			if (arg_is_output(in, k) && s->reg_dynamic[in->args[k]])
+				dyn = true;
 		if (dyn && gpu_cannot(p, in)) {
 			/* computed at bake time anyway: stays static */
 			dyn = false;
 		}
-		if (dyn && !s->dynamic[i]) {
-			s->dynamic[i] = 1;
+		if (dyn && !s->insn_dynamic[i]) {
+			s->insn_dynamic[i] = 1;
 			st->changed = true;
 		}
-		if (s->dynamic[i]) {
+		if (s->insn_dynamic[i]) {
+			in_dynamic_loops(st);
 			set_reg(st, in->dst);
 			for (int k = 0; k < in->nargs; k++)
 				if (arg_is_output(in, k))
@@ -328,6 +360,53 @@ static void keep_structure(const struct sl_program *p, uint8_t *keep, const uint
 }
 
 /*
+ * A copy of @prog with only the instructions @keep marks (blocks must be kept
+ * or dropped whole, with their ELSE optional). Jumps are renumbered; a jump
+ * to a dropped ELSE lands on its ENDIF; a parameter whose default code is
+ * dropped gets an empty default. Registers and pools are shared with @prog.
+ */
+static struct sl_program *cut_program(const struct sl_program *prog, const uint8_t *keep)
+{
+	struct rl_arena *arena = rl_arena_create();
+	struct sl_program *c = rl_arena_alloc(arena, sizeof(*c));
+	*c = *prog;
+	c->arena = arena;
+	/* map[i]: index in the copy of the first kept instruction at or after i */
+	int32_t *map = rl_xcalloc(prog->ncode + 1, sizeof(int32_t));
+	uint32_t n = 0;
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		map[i] = (int32_t)n;
+		if (keep[i])
+			n++;
+	}
+	map[prog->ncode] = (int32_t)n;
+	c->code = rl_arena_alloc(arena, sizeof(struct sl_insn) * (n + 1));
+	c->ncode = n;
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		if (!keep[i])
+			continue;
+		struct sl_insn in = prog->code[i];
+		for (int k = 0; k < 2; k++)
+			if (in.jump[k] >= 0) {
+				int32_t t = in.jump[k];
+				while (t < (int32_t)prog->ncode && !keep[t])
+					t = prog->code[t].op == SL_OP_ELSE ? prog->code[t].jump[1] : t + 1;
+				in.jump[k] = map[t < (int32_t)prog->ncode ? t : (int32_t)prog->ncode];
+			}
+		c->code[map[i]] = in;
+	}
+	c->body_begin = (uint32_t)map[prog->body_begin < prog->ncode ? prog->body_begin : prog->ncode];
+	c->params = rl_arena_alloc(arena, sizeof(struct sl_param) * (prog->nparams + 1));
+	for (uint32_t k = 0; k < prog->nparams; k++) {
+		c->params[k] = prog->params[k];
+		c->params[k].init_begin = (uint32_t)map[prog->params[k].init_begin];
+		c->params[k].init_end = (uint32_t)map[prog->params[k].init_end];
+	}
+	free(map);
+	return c;
+}
+
+/*
  * The caching program: @prog's parameter code and its live static
  * instructions; structure kept where its condition is static, dropped (so
  * both sides run) where it is dynamic.
@@ -340,7 +419,7 @@ static struct sl_program *make_caching(const struct sl_program *prog, const stru
 		if (i < prog->body_begin)
 			keep[i] = 1; /* parameter defaults */
 		else if (!is_control(in->op))
-			keep[i] = s->live[i] && !s->dynamic[i];
+			keep[i] = s->live[i] && !s->insn_dynamic[i];
 	}
 	/* structure with a static condition whose body keeps something */
 	uint8_t *want = rl_xcalloc(prog->ncode + 1, 1);
@@ -349,7 +428,7 @@ static struct sl_program *make_caching(const struct sl_program *prog, const stru
 		if (!is_opener(in->op))
 			continue;
 		bool dyn_block = in->op == SL_OP_ILLUMINANCE || in->op == SL_OP_ILLUMINATE ||
-				 in->op == SL_OP_SOLAR || s->dynamic[i];
+				 in->op == SL_OP_SOLAR || s->insn_dynamic[i];
 		int32_t end = in->op == SL_OP_IF || in->op == SL_OP_LOOP ? in->jump[1] : in->jump[0];
 		if (in->op == SL_OP_LOOP && in->jump[0] >= 0 &&
 		    s->reg_dynamic[prog->code[in->jump[0]].args[0]])
@@ -368,41 +447,58 @@ static struct sl_program *make_caching(const struct sl_program *prog, const stru
 	}
 	free(want);
 
-	struct rl_arena *arena = rl_arena_create();
-	struct sl_program *c = rl_arena_alloc(arena, sizeof(*c));
-	*c = *prog;
-	c->arena = arena;
-	int32_t *map = rl_xcalloc(prog->ncode + 1, sizeof(int32_t));
-	uint32_t n = 0;
-	for (uint32_t i = 0; i < prog->ncode; i++)
-		map[i] = keep[i] ? (int32_t)n++ : -1;
-	map[prog->ncode] = (int32_t)n;
-	c->code = rl_arena_alloc(arena, sizeof(struct sl_insn) * (n + 1));
-	c->ncode = n;
-	for (uint32_t i = 0; i < prog->ncode; i++) {
-		if (!keep[i])
-			continue;
-		struct sl_insn in = prog->code[i];
-		for (int k = 0; k < 2; k++)
-			if (in.jump[k] >= 0) {
-				/* a jump to a dropped ELSE lands on the ENDIF */
-				int32_t t = in.jump[k];
-				while (t < (int32_t)prog->ncode && map[t] < 0)
-					t = prog->code[t].op == SL_OP_ELSE ? prog->code[t].jump[1] : t + 1;
-				in.jump[k] = map[t < (int32_t)prog->ncode ? t : (int32_t)prog->ncode];
-			}
-		c->code[map[i]] = in;
-	}
-	c->body_begin = (uint32_t)map[prog->body_begin < prog->ncode ? prog->body_begin : prog->ncode];
-	c->params = rl_arena_alloc(arena, sizeof(struct sl_param) * (prog->nparams + 1));
-	for (uint32_t k = 0; k < prog->nparams; k++) {
-		c->params[k] = prog->params[k];
-		c->params[k].init_begin = (uint32_t)map[prog->params[k].init_begin];
-		c->params[k].init_end = (uint32_t)map[prog->params[k].init_end];
-	}
-	free(map);
+	struct sl_program *c = cut_program(prog, keep);
 	free(keep);
 	return c;
+}
+
+/*
+ * The dynamic program: the kept instructions of the slice (what the GLSL
+ * generator emits) over a copy of @prog's registers in which every cached
+ * number is varying, so that samples from different grids (with different
+ * uniform values) run side by side; what they feed is re-inferred. The
+ * defaults of parameters that are not cached stay (a light's surface() may
+ * read any parameter); cached ones come from the cache (sl_exec_hold).
+ */
+static struct sl_program *make_dynamic(const struct sl_program *prog, const struct sl_spec *s)
+{
+	uint8_t *is_cached = rl_xcalloc(prog->nregs + 1, 1);
+	for (uint32_t k = 0; k < s->ncached; k++)
+		is_cached[s->cached[k]] = 1;
+	uint8_t *keep = rl_xcalloc(prog->ncode + 1, 1);
+	for (uint32_t i = prog->body_begin; i < prog->ncode; i++)
+		keep[i] = s->keep[i];
+	for (uint32_t k = 0; k < prog->nparams; k++)
+		if (!is_cached[prog->params[k].reg])
+			for (uint32_t i = prog->params[k].init_begin; i < prog->params[k].init_end; i++)
+				keep[i] = 1;
+	struct sl_program *d = cut_program(prog, keep);
+	free(keep);
+
+	struct sl_reg *regs = rl_arena_alloc(d->arena, sizeof(struct sl_reg) * (prog->nregs + 1));
+	memcpy(regs, prog->regs, sizeof(struct sl_reg) * prog->nregs);
+	for (uint32_t r = 0; r < prog->nregs; r++) {
+		if (regs[r].type == SL_TYPE_STRING)
+			continue;
+		if (is_cached[r])
+			regs[r].varying = true;
+		/* not source code: what a cached value feeds may become varying */
+		regs[r].declared_uniform = false;
+	}
+	d->regs = regs;
+	struct sl_options opts = { 0 };
+	struct sl_ctx ctx;
+	sl_ctx_init(&ctx, &opts);
+	ctx.quiet = true;
+	bool ok = sl_infer(&ctx, d);
+	sl_ctx_finish(&ctx);
+	if (!ok) {
+		/* Some value must stay uniform (a texture channel, a name): keep
+		 * the original uniformity, which the kept code already satisfies. */
+		memcpy(regs, prog->regs, sizeof(struct sl_reg) * prog->nregs);
+	}
+	free(is_cached);
+	return d;
 }
 
 static void add_unique(int32_t **v, uint32_t *n, int32_t r)
@@ -416,6 +512,12 @@ static void add_unique(int32_t **v, uint32_t *n, int32_t r)
 struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *dynamic_params,
 			      size_t ndynamic, FILE *diag)
 {
+	return sl_specialize_ex(prog, dynamic_params, ndynamic, 0, diag);
+}
+
+struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *const *dynamic_params,
+				 size_t ndynamic, unsigned flags, FILE *diag)
+{
 	if (!diag)
 		diag = stderr;
 	if (prog->kind != SL_SHADER_SURFACE) {
@@ -425,7 +527,7 @@ struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *
 	}
 	struct sl_spec *s = rl_xcalloc(1, sizeof(*s));
 	s->prog = prog;
-	s->dynamic = rl_xcalloc(prog->ncode + 1, 1);
+	s->insn_dynamic = rl_xcalloc(prog->ncode + 1, 1);
 	s->live = rl_xcalloc(prog->ncode + 1, 1);
 	s->reg_dynamic = rl_xcalloc(prog->nregs + 1, 1);
 	bool ok = true;
@@ -497,7 +599,7 @@ struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *
 	s->keep = rl_xcalloc(prog->ncode + 1, 1);
 	for (uint32_t i = prog->body_begin; i < prog->ncode; i++)
 		if (!is_control(prog->code[i].op))
-			s->keep[i] = s->live[i] && s->dynamic[i];
+			s->keep[i] = s->live[i] && s->insn_dynamic[i];
 	keep_structure(prog, s->keep, NULL);
 	for (uint32_t i = prog->body_begin; i < prog->ncode; i++) {
 		int op = prog->code[i].op;
@@ -520,7 +622,8 @@ struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *
 			if (arg_is_output(in, k) || s->reg_dynamic[r] || reg->kind == SL_REG_CONST)
 				continue;
 			/* uniform parameters the body never writes stay uniforms */
-			if (reg->kind == SL_REG_PARAM && !reg->varying && st.writes[r] <= 1)
+			if (reg->kind == SL_REG_PARAM && !reg->varying && st.writes[r] <= 1 &&
+			    !(flags & SL_SPEC_CACHE_PARAMS))
 				continue;
 			add_unique(&s->cached, &s->ncached, r);
 		}
@@ -549,6 +652,22 @@ struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *
 			}
 		}
 	}
+	/* The light host gives the lights the surface's E and time (when both
+	 * shaders have them): where the kept code runs lights, they are inputs. */
+	bool runs_lights = false;
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		const struct sl_insn *in = &prog->code[i];
+		if (s->keep[i] && (in->op == SL_OP_ILLUMINANCE ||
+				   (in->op == SL_OP_CALL && in->bi >= 0 &&
+				    (sl_builtins[in->bi].flags & SL_BIF_LIGHTS))))
+			runs_lights = true;
+	}
+	static const enum sl_global shared_globals[] = { SL_GLOBAL_E, SL_GLOBAL_TIME };
+	for (size_t g = 0; g < 2 && runs_lights; g++) {
+		int32_t r = prog->global_reg[shared_globals[g]];
+		if (r >= 0 && !s->reg_dynamic[r])
+			add_unique(&s->cached, &s->ncached, r);
+	}
 	/* Outputs: Ci and Oi always (static ones pass their cached value through),
 	 * dynamic output parameters. */
 	if (ci >= 0) {
@@ -570,7 +689,7 @@ struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *
 			continue;
 		if (!s->live[i])
 			s->ndead++;
-		else if (s->dynamic[i])
+		else if (s->insn_dynamic[i])
 			s->ndynamic++;
 		else
 			s->nstatic++;
@@ -582,6 +701,7 @@ struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *
 	s->slice.outputs = s->outputs;
 	s->slice.noutputs = nout;
 	s->caching = make_caching(prog, s);
+	s->dynamic = make_dynamic(prog, s);
 
 	free(reg_live);
 	free(st.writes);
@@ -594,7 +714,7 @@ void sl_spec_destroy(struct sl_spec *s)
 {
 	if (!s)
 		return;
-	free(s->dynamic);
+	free(s->insn_dynamic);
 	free(s->live);
 	free(s->reg_dynamic);
 	free(s->cached);
@@ -603,6 +723,8 @@ void sl_spec_destroy(struct sl_spec *s)
 	free(s->outputs);
 	if (s->caching)
 		rl_arena_destroy(s->caching->arena);
+	if (s->dynamic)
+		rl_arena_destroy(s->dynamic->arena);
 	free(s);
 }
 
@@ -652,4 +774,110 @@ char *sl_spec_report_fields(const struct sl_spec *s, const char *const *dynamic_
 	char *out = rl_xstrdup(rl_strbuf_str(&b));
 	rl_strbuf_finish(&b);
 	return out;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Running the dynamic program                                               */
+
+/* Floats per sample of a cached register (strings: none, they are pointers). */
+static uint32_t cache_floats(const struct sl_reg *r)
+{
+	if (r->type == SL_TYPE_STRING)
+		return 0;
+	return (uint32_t)sl_reg_ncomp(r) * (uint32_t)(r->arraylen > 0 ? r->arraylen : 1);
+}
+
+uint32_t sl_spec_cache_layout(const struct sl_spec *s, uint32_t *offset)
+{
+	uint32_t at = 0;
+	for (uint32_t k = 0; k < s->ncached; k++) {
+		if (offset)
+			offset[k] = at;
+		at += cache_floats(&s->prog->regs[s->cached[k]]);
+	}
+	return at;
+}
+
+/* @x runs s->dynamic over @n samples, every cached register held. */
+static bool dynamic_ready(const struct sl_spec *s, struct sl_exec *x, uint32_t n)
+{
+	if (!s || !x || x->prog != s->dynamic) {
+		fprintf(stderr, "%s: error: not an executor of the shader's dynamic program\n",
+			s ? s->prog->name : "?");
+		return false;
+	}
+	if (n == 0 || !sl_exec_set_grid(x, n, 1)) {
+		fprintf(stderr, "%s: error: %u samples do not fit the executor (%u points)\n",
+			s->prog->name, n, x->maxn);
+		return false;
+	}
+	for (uint32_t k = 0; k < s->ncached; k++)
+		sl_exec_hold(x, s->cached[k], true);
+	return true;
+}
+
+bool sl_spec_bind_cache(const struct sl_spec *s, struct sl_exec *x, uint32_t n,
+			const float *records, uint32_t stride, const uint32_t *offset)
+{
+	if (!dynamic_ready(s, x, n))
+		return false;
+	uint32_t packed = 0;
+	for (uint32_t k = 0; k < s->ncached; k++) {
+		int32_t r = s->cached[k];
+		uint32_t nf = cache_floats(&s->prog->regs[r]);
+		uint32_t off = offset ? offset[k] : packed;
+		packed += nf;
+		if (!nf)
+			continue;
+		if (!records || (uint64_t)off + nf > stride) {
+			fprintf(stderr, "%s: error: cached value %u lies outside the %u-float records\n",
+				s->prog->name, k, stride);
+			return false;
+		}
+		float *d = x->data[r];
+		if (!s->dynamic->regs[r].varying) {
+			memcpy(d, records + off, nf * sizeof(float));
+			continue;
+		}
+		for (uint32_t c = 0; c < nf; c++)
+			for (uint32_t i = 0; i < n; i++)
+				d[(size_t)c * x->stride + i] = records[(size_t)i * stride + off + c];
+	}
+	return true;
+}
+
+bool sl_spec_copy_cache(const struct sl_spec *s, struct sl_exec *x, const struct sl_exec *from,
+			const uint32_t *order, uint32_t n)
+{
+	if (!s || !from || (from->prog != s->caching && from->prog != s->prog)) {
+		fprintf(stderr, "%s: error: the cache comes from an executor of the caching program "
+			"or of the shader\n", s ? s->prog->name : "?");
+		return false;
+	}
+	for (uint32_t j = 0; order && j < n; j++)
+		if (order[j] >= from->n) {
+			fprintf(stderr, "%s: error: sample %u is not on the cached grid (%u points)\n",
+				s->prog->name, order[j], from->n);
+			return false;
+		}
+	if (!dynamic_ready(s, x, n))
+		return false;
+	for (uint32_t k = 0; k < s->ncached; k++) {
+		int32_t r = s->cached[k];
+		const struct sl_reg *rg = &s->prog->regs[r];
+		bool fv = from->prog->regs[r].varying, xv = s->dynamic->regs[r].varying;
+		uint32_t tot = (uint32_t)(rg->arraylen > 0 ? rg->arraylen : 1) *
+			       (rg->type == SL_TYPE_STRING ? 1u : (uint32_t)sl_reg_ncomp(rg));
+		for (uint32_t c = 0; c < tot; c++)
+			for (uint32_t j = 0; j < (xv ? n : 1); j++) {
+				uint32_t i = order ? order[j] : j;
+				size_t src = fv ? (size_t)c * from->stride + i : c;
+				size_t dst = xv ? (size_t)c * x->stride + j : c;
+				if (rg->type == SL_TYPE_STRING)
+					x->sdata[r][dst] = from->sdata[r][src];
+				else
+					x->data[r][dst] = from->data[r][src];
+			}
+	}
+	return true;
 }

@@ -10,11 +10,12 @@
 #ifndef SL_SPEC_H
 #define SL_SPEC_H
 
+#include "exec.h"
 #include "glsl.h"
 
 struct sl_spec {
 	const struct sl_program *prog;
-	uint8_t *dynamic;        /* per instruction */
+	uint8_t *insn_dynamic;   /* per instruction */
 	uint8_t *live;           /* per instruction */
 	uint8_t *reg_dynamic;    /* per register */
 	/* The static values the dynamic part reads: the caching program's
@@ -35,6 +36,33 @@ struct sl_spec {
 	/* The caching program: the live static instructions, with dynamic
 	 * branch conditions dropped so both sides of such a branch run. Owned. */
 	struct sl_program *caching;
+	/*
+	 * The dynamic program: what the GLSL of the slice computes, for the
+	 * interpreter (the CPU reference of the GPU runtime). Owned. It has
+	 * the kept instructions (keep), reads every cached value from the
+	 * cache instead of computing it, and writes Ci, Oi and the dynamic
+	 * output parameters.
+	 *
+	 * Its registers are numbered as @prog's. sl_spec_bind_cache() or
+	 * sl_spec_copy_cache() sets the grid to n x 1 (samples in any order,
+	 * from any grids: nothing reads a neighbour, derivatives are cached),
+	 * holds the cached registers (sl_exec_hold) and writes their values.
+	 * The globals the kept code reads (P, N, I, s, t, Cs, Os, and E and
+	 * time when lights run) are cached values like the others; a global
+	 * only a parameter default reads is set with sl_exec_global(). Every
+	 * cached number is varying here, so samples whose uniform values
+	 * differ (du, E of different grids) run together; if the code needs
+	 * one uniform (a texture channel), none is made varying and uniform
+	 * cached values come from the first sample (dynamic->regs[r].varying
+	 * tells).
+	 *
+	 * Parameters are bound by name as for @prog: dynamic ones with their
+	 * new values, the others as at bake time (cached parameters ignore
+	 * what is set). Defaults of parameters that are not cached run as in
+	 * @prog (one that reads a cached parameter sees its cached, final
+	 * value). Lights run whole through the light host, as for @prog.
+	 */
+	struct sl_program *dynamic;
 };
 
 /**
@@ -43,7 +71,54 @@ struct sl_spec {
  */
 struct sl_spec *sl_specialize(const struct sl_program *prog, const char *const *dynamic_params,
 			      size_t ndynamic, FILE *diag);
+
+/** Flags of sl_specialize_ex. */
+enum {
+	/*
+	 * Cache the uniform parameters the dynamic part reads (by default they
+	 * stay uniforms, set per shader instance): for a shot, whose samples
+	 * come from many instances with their own values, one dispatch per
+	 * surface shader needs them per sample.
+	 */
+	SL_SPEC_CACHE_PARAMS = 1,
+};
+
+/** sl_specialize with @flags (SL_SPEC_*). */
+struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *const *dynamic_params,
+				 size_t ndynamic, unsigned flags, FILE *diag);
+
 void sl_spec_destroy(struct sl_spec *s);
+
+/**
+ * The cache as packed records: fills @offset (s->ncached entries, may be
+ * NULL) with each cached value's first float in a sample's record, in
+ * s->cached order, and returns the floats per sample. A value has
+ * ncomp * max(1, arraylen) floats, components of an element consecutive;
+ * strings take none (they are set with sl_exec_reg_strings()).
+ */
+uint32_t sl_spec_cache_layout(const struct sl_spec *s, uint32_t *offset);
+
+/**
+ * Prepare @x, an executor of s->dynamic, to run over @n samples whose
+ * cached values are @records: sample i's value k at records[i * stride +
+ * offset[k]] (@offset NULL: the packed layout of sl_spec_cache_layout();
+ * sl_glsl_layout's in_offset and in_stride also fit). Sets the grid to
+ * n x 1 and holds every cached register. Cached strings keep what the
+ * caller wrote with sl_exec_reg_strings() (they must outlive the run).
+ * False (message on stderr) if @x is not s->dynamic's, @n does not fit or
+ * a value lies outside the records.
+ */
+bool sl_spec_bind_cache(const struct sl_spec *s, struct sl_exec *x, uint32_t n,
+			const float *records, uint32_t stride, const uint32_t *offset);
+
+/**
+ * The same from @from, an executor of s->caching (or of s->prog) after its
+ * run: dynamic sample j takes the cached values of @from's point order[j]
+ * (@order NULL: point j). Strings are shared with @from: valid until its
+ * next run. False (message on stderr) on a wrong executor or sample.
+ */
+bool sl_spec_copy_cache(const struct sl_spec *s, struct sl_exec *x, const struct sl_exec *from,
+			const uint32_t *order, uint32_t n);
 
 /**
  * JSON object members describing the specialization (for relight compile's

@@ -9,6 +9,7 @@
 
 #include <stdint.h>
 #include <time.h>
+#include <unistd.h>
 
 #define NO_DEPTH 1e30f
 
@@ -872,6 +873,632 @@ static void test_bad_input(void)
 	reyes_hider_destroy(h);
 }
 
+/* ---- record mode (the indirect framebuffer) ---- */
+
+/* A whole image's recipes: pixel p has entries e[start[p]] .. e[start[p] + count[p] - 1]. */
+struct recimg {
+	uint32_t W, H;
+	uint32_t *start, *count;
+	struct reyes_vis_entry *e;
+	size_t ne, cap;
+	float *alpha, *z;
+	uint64_t samples;
+};
+
+static void recimg_free(struct recimg *r)
+{
+	free(r->start);
+	free(r->count);
+	free(r->e);
+	free(r->alpha);
+	free(r->z);
+	memset(r, 0, sizeof(*r));
+}
+
+/* Render @grids in record mode (o->record is set here) in buckets of bw x bh. */
+static void render_record(const struct reyes_hider_opts *opts,
+			  struct reyes_hider_grid *const *grids, int ngrids, uint32_t bw, uint32_t bh,
+			  struct recimg *r)
+{
+	struct reyes_hider_opts o = *opts;
+	o.record = true;
+	memset(r, 0, sizeof(*r));
+	r->W = o.xres;
+	r->H = o.yres;
+	size_t npix = (size_t)o.xres * o.yres;
+	r->start = calloc(npix, sizeof(uint32_t));
+	r->count = calloc(npix, sizeof(uint32_t));
+	r->alpha = calloc(npix, sizeof(float));
+	r->z = calloc(npix, sizeof(float));
+	struct reyes_hider *h = reyes_hider_create(&o);
+	if (!h)
+		return;
+	float *ba = malloc((size_t)bw * bh * sizeof(float));
+	float *bz = malloc((size_t)bw * bh * sizeof(float));
+	for (uint32_t y0 = 0; y0 < o.yres; y0 += bh) {
+		for (uint32_t x0 = 0; x0 < o.xres; x0 += bw) {
+			uint32_t x1 = x0 + bw < o.xres ? x0 + bw : o.xres;
+			uint32_t y1 = y0 + bh < o.yres ? y0 + bh : o.yres;
+			reyes_hider_begin(h, x0, y0, x1, y1);
+			for (int g = 0; g < ngrids; g++)
+				reyes_hider_add(h, grids[g]);
+			const uint32_t *off = NULL;
+			const struct reyes_vis_entry *ent = NULL;
+			r->samples += reyes_hider_end_record(h, &off, &ent, ba, bz);
+			uint32_t w = x1 - x0;
+			size_t nb = off[(size_t)w * (y1 - y0)];
+			if (r->ne + nb > r->cap) {
+				r->cap = (r->ne + nb) * 2;
+				r->e = realloc(r->e, r->cap * sizeof(*r->e));
+			}
+			for (uint32_t y = y0; y < y1; y++) {
+				for (uint32_t x = x0; x < x1; x++) {
+					size_t src = (size_t)(y - y0) * w + (x - x0);
+					size_t dst = (size_t)y * o.xres + x;
+					r->alpha[dst] = ba[src];
+					r->z[dst] = bz[src];
+					r->start[dst] = (uint32_t)r->ne;
+					r->count[dst] = off[src + 1] - off[src];
+					if (r->count[dst])
+						memcpy(r->e + r->ne, ent + off[src],
+						       r->count[dst] * sizeof(*r->e));
+					r->ne += r->count[dst];
+				}
+			}
+		}
+	}
+	free(ba);
+	free(bz);
+	reyes_hider_destroy(h);
+}
+
+/* Pixel p's colour from the recipe: sum(weight Ci[id - base]) over planes of @nid ids. */
+static void recimg_colour(const struct recimg *r, size_t p, const float *Ci, uint32_t base,
+			  uint32_t nid, double out[3], double mag[3])
+{
+	for (int k = 0; k < 3; k++)
+		out[k] = mag[k] = 0.0;
+	for (uint32_t i = 0; i < r->count[p]; i++) {
+		const struct reyes_vis_entry *e = &r->e[r->start[p] + i];
+		if (e->id < base || e->id - base >= nid)
+			continue; /* reported by the caller's id check */
+		for (int k = 0; k < 3; k++) {
+			double v = (double)e->weight * Ci[(size_t)k * nid + (e->id - base)];
+			out[k] += v;
+			mag[k] += fabs(v);
+		}
+	}
+}
+
+static uint64_t rng_state = 0x853c49e6748fea9bu;
+
+static double rnd(void)
+{
+	rng_state = rng_state * 6364136223846793005u + 1442695040888963407u;
+	return (double)(rng_state >> 11) * (1.0 / 9007199254740992.0);
+}
+
+/*
+ * A random grid: nu x nv vertices (2 to 6 each) on a rotated, sheared
+ * patch of 2 to 10 pixels with wobble, a depth slope, grey opacity (opaque,
+ * or random per vertex), random colours; sometimes matte, moving, culled or
+ * flipped, smooth or flat.
+ */
+static struct tgrid *random_grid(uint32_t W, uint32_t H, uint32_t id0)
+{
+	uint32_t nu = 2 + (uint32_t)(rnd() * 5), nv = 2 + (uint32_t)(rnd() * 5);
+	struct tgrid *t = tgrid_new(nu, nv);
+	size_t n = (size_t)nu * nv;
+	double cx = -2 + rnd() * (W + 4), cy = -2 + rnd() * (H + 4);
+	double sx = 2 + rnd() * 8, sy = 2 + rnd() * 8, th = rnd() * 6.2831853;
+	double shear = rnd() - 0.5, z0 = 1 + rnd() * 9, dzx = rnd() - 0.5, dzy = rnd() - 0.5;
+	int opq = rnd() < 0.4;
+	for (uint32_t j = 0; j < nv; j++) {
+		for (uint32_t i = 0; i < nu; i++) {
+			size_t p = (size_t)j * nu + i;
+			double u = ((double)i / (nu - 1) - 0.5) * sx, v = ((double)j / (nv - 1) - 0.5) * sy;
+			u += shear * v + 0.15 * (rnd() - 0.5) * sx / nu;
+			v += 0.15 * (rnd() - 0.5) * sy / nv;
+			t->x[0][p] = (float)(cx + cos(th) * u - sin(th) * v);
+			t->y[0][p] = (float)(cy + sin(th) * u + cos(th) * v);
+			t->z[0][p] = (float)(z0 + dzx * u + dzy * v + 0.2 * rnd());
+			float op = opq ? 1.0f : (float)(0.1 + 0.9 * rnd());
+			for (int k = 0; k < 3; k++) {
+				t->Oi[k * n + p] = op;
+				t->Ci[k * n + p] = (float)rnd();
+			}
+		}
+	}
+	tgrid_static(t);
+	if (rnd() < 0.3) {
+		double dx = 6 * (rnd() - 0.5), dy = 6 * (rnd() - 0.5), dz = rnd() - 0.5;
+		for (size_t p = 0; p < n; p++) {
+			t->x[1][p] = t->x[0][p] + (float)dx;
+			t->y[1][p] = t->y[0][p] + (float)dy;
+			t->z[1][p] = t->z[0][p] + (float)dz;
+		}
+		tgrid_moving(t);
+	}
+	t->g.smooth = rnd() < 0.5;
+	t->g.matte = rnd() < 0.12;
+	t->g.cull_backfacing = rnd() < 0.3;
+	t->g.flip = rnd() < 0.5;
+	t->g.id0 = id0;
+	return t;
+}
+
+/* Every pixel's entries: ids sorted and unique, weights finite and (when @nonneg) >= 0. */
+static int check_entries(const struct recimg *r, bool nonneg, uint32_t base, uint32_t nid,
+			 const bool *matte_id)
+{
+	int bad = 0;
+	for (size_t p = 0; p < (size_t)r->W * r->H; p++) {
+		for (uint32_t i = 0; i < r->count[p]; i++) {
+			const struct reyes_vis_entry *e = &r->e[r->start[p] + i];
+			if (i > 0 && !(e[-1].id < e->id))
+				bad++;
+			if (!isfinite(e->weight) || e->weight == 0.0f || (nonneg && e->weight < 0))
+				bad++;
+			if (e->id < base || e->id - base >= nid)
+				bad++;
+			else if (matte_id && matte_id[e->id - base])
+				bad++;
+		}
+	}
+	return bad;
+}
+
+/*
+ * The recipe reproduces the normal render: for random scenes (transparent,
+ * opaque, matte, smooth, flat, moving, culled grids), every filter at widths
+ * 1 to 4 and 1x1, 3x3, 4x4 and 2x3 samples, in buckets whose margins cut
+ * through the scene, sum(weight Ci[id]) equals reyes_hider_end's colour
+ * within 1e-5 of the sum of |weight Ci| plus 1e-6, and alpha and depth are
+ * bit-identical.
+ */
+static void test_record_identity(void)
+{
+	uint32_t W = 23, H = 17, ngrid = 14, base = 1000;
+	static const uint32_t spp[][2] = { { 1, 1 }, { 3, 3 }, { 4, 4 }, { 2, 3 } };
+	double worst = 0, worst_rel = 0;
+	size_t entries = 0, pixels = 0;
+	int bad_ident = 0, bad_alpha = 0, bad_z = 0, bad_entries = 0;
+	for (int f = 0; f <= REYES_FILTER_SEP_GAUSSIAN; f++) {
+		for (int wi = 1; wi <= 4; wi++) {
+			for (size_t si = 0; si < sizeof(spp) / sizeof(spp[0]); si++) {
+				struct tgrid *t[16];
+				struct reyes_hider_grid *g[16];
+				uint32_t id = base;
+				for (uint32_t k = 0; k < ngrid; k++) {
+					t[k] = random_grid(W, H, id);
+					g[k] = &t[k]->g;
+					id += t[k]->nu * t[k]->nv;
+				}
+				uint32_t nid = id - base;
+				float *Ci = calloc((size_t)3 * nid, sizeof(float));
+				bool *matte = calloc(nid, sizeof(bool));
+				for (uint32_t k = 0; k < ngrid; k++) {
+					size_t n = (size_t)t[k]->nu * t[k]->nv;
+					for (int c = 0; c < 3; c++)
+						memcpy(Ci + (size_t)c * nid + (t[k]->g.id0 - base),
+						       t[k]->Ci + c * n, n * sizeof(float));
+					for (size_t p = 0; p < n; p++)
+						matte[t[k]->g.id0 - base + p] = t[k]->g.matte;
+				}
+				struct reyes_hider_opts o = opts_default(W, H, spp[si][0]);
+				o.ysamples = spp[si][1];
+				o.filter = (enum reyes_filter)f;
+				o.filter_width[0] = o.filter_width[1] = (float)wi;
+				o.depthfilter = (enum reyes_depthfilter)((f + wi) % 4);
+				o.seed = (uint32_t)(f * 31 + wi * 7 + si);
+				float *img = image(W, H, 4), *z = image(W, H, 1);
+				render(&o, g, (int)ngrid, 7, 5, img, z, NULL);
+				struct recimg r;
+				render_record(&o, g, (int)ngrid, 7, 5, &r);
+				bool nonneg = f == REYES_FILTER_BOX || f == REYES_FILTER_TRIANGLE ||
+					      f == REYES_FILTER_GAUSSIAN ||
+					      f == REYES_FILTER_SEP_GAUSSIAN;
+				bad_entries += check_entries(&r, nonneg, base, nid, matte);
+				for (size_t p = 0; p < (size_t)W * H; p++) {
+					double col[3], mag[3];
+					recimg_colour(&r, p, Ci, base, nid, col, mag);
+					for (int k = 0; k < 3; k++) {
+						double err = fabs(col[k] - img[p * 4 + k]);
+						worst = fmax(worst, err);
+						if (mag[k] > 0)
+							worst_rel = fmax(worst_rel, err / mag[k]);
+						bad_ident += !(err <= 1e-5 * mag[k] + 1e-6);
+					}
+					bad_alpha += r.alpha[p] != img[p * 4 + 3];
+					bad_z += r.z[p] != z[p];
+					entries += r.count[p];
+				}
+				pixels += (size_t)W * H;
+				recimg_free(&r);
+				free(img);
+				free(z);
+				free(Ci);
+				free(matte);
+				for (uint32_t k = 0; k < ngrid; k++)
+					tgrid_free(t[k]);
+			}
+		}
+	}
+	CHECK(bad_ident == 0);
+	CHECK(bad_alpha == 0);
+	CHECK(bad_z == 0);
+	CHECK(bad_entries == 0);
+	/* Not trivially empty: scenes cover much of the image with several layers. */
+	CHECK(entries > pixels * 2);
+	printf("record identity: worst colour error %.3g (%.3g of sum |w Ci|), %.2f entries per "
+	       "pixel\n",
+	       worst, worst_rel, (double)entries / pixels);
+}
+
+/* The same recipes whatever the bucket size (margins sampled alike). */
+static void test_record_buckets(void)
+{
+	uint32_t W = 21, H = 15, ngrid = 12;
+	struct tgrid *t[12];
+	struct reyes_hider_grid *g[12];
+	uint32_t id = 5;
+	for (uint32_t k = 0; k < ngrid; k++) {
+		t[k] = random_grid(W, H, id);
+		g[k] = &t[k]->g;
+		id += t[k]->nu * t[k]->nv;
+	}
+	struct reyes_hider_opts o = opts_default(W, H, 3);
+	o.filter = REYES_FILTER_CATMULLROM;
+	o.filter_width[0] = 3;
+	o.filter_width[1] = 4;
+	struct recimg a, b;
+	render_record(&o, g, (int)ngrid, W, H, &a);
+	static const uint32_t sizes[][2] = { { 1, 1 }, { 4, 3 }, { 16, 16 } };
+	for (size_t s = 0; s < sizeof(sizes) / sizeof(sizes[0]); s++) {
+		render_record(&o, g, (int)ngrid, sizes[s][0], sizes[s][1], &b);
+		CHECK(a.ne == b.ne);
+		CHECK(memcmp(a.count, b.count, (size_t)W * H * sizeof(uint32_t)) == 0);
+		int bad = 0;
+		for (size_t p = 0; p < (size_t)W * H; p++)
+			bad += a.count[p] != b.count[p] ||
+			       memcmp(a.e + a.start[p], b.e + b.start[p],
+				      a.count[p] * sizeof(*a.e)) != 0;
+		CHECK(bad == 0);
+		CHECK(memcmp(a.alpha, b.alpha, (size_t)W * H * sizeof(float)) == 0);
+		CHECK(b.samples >= a.samples);
+		recimg_free(&b);
+	}
+	CHECK(a.ne > 0);
+	recimg_free(&a);
+	for (uint32_t k = 0; k < ngrid; k++)
+		tgrid_free(t[k]);
+}
+
+/*
+ * Coloured opacity: the recipe composites with the mean of the three
+ * channels' transmittance, as AOVs do. It equals an AOV that carries Ci, not
+ * the per-channel colour.
+ */
+static void test_record_coloured_opacity(void)
+{
+	uint32_t W = 8, H = 8;
+	const float grey[3] = { 0.5f, 0.5f, 0.5f };
+	struct tgrid *wall = rect_grid(0, 0, 8, 8, 6, grey, 1.0f);
+	struct tgrid *glass = rect_grid(1, 1, 7, 7, 2, grey, 1.0f);
+	for (int i = 0; i < 4; i++) {
+		static const float op[3] = { 0.9f, 0.5f, 0.1f };
+		for (int k = 0; k < 3; k++) {
+			glass->Oi[k * 4 + i] = op[k];
+			glass->Ci[k * 4 + i] = 0.3f * op[k];
+		}
+	}
+	wall->g.id0 = 0;
+	glass->g.id0 = 4;
+	const float *aov3[2][3];
+	struct tgrid *tg[2] = { wall, glass };
+	float Ci[3 * 8];
+	for (int j = 0; j < 2; j++) {
+		for (int k = 0; k < 3; k++) {
+			aov3[j][k] = tg[j]->Ci + k * 4;
+			memcpy(Ci + k * 8 + j * 4, tg[j]->Ci + k * 4, 4 * sizeof(float));
+		}
+		tg[j]->g.aov = aov3[j];
+	}
+	struct reyes_hider_grid *g[2] = { &wall->g, &glass->g };
+	struct reyes_hider_opts o = opts_default(W, H, 4);
+	o.naov = 3;
+	float *img = image(W, H, 4), *aov = image(W, H, 3);
+	render(&o, g, 2, W, H, img, NULL, aov);
+	struct recimg r;
+	o.naov = 0;
+	render_record(&o, g, 2, 4, 4, &r);
+	size_t p = 4 * W + 4; /* under the glass */
+	double col[3], mag[3];
+	recimg_colour(&r, p, Ci, 0, 8, col, mag);
+	for (int k = 0; k < 3; k++) {
+		CHECK_NEAR(col[k], aov[p * 3 + k], 1e-5 * mag[k] + 1e-6);
+		/* Per channel: 0.3 op + (1 - op) 0.5; with the mean transmittance
+		 * (1 - 0.5) the wall adds 0.25 in every channel. */
+		double exact = 0.3 * (k == 0 ? 0.9 : k == 1 ? 0.5 : 0.1);
+		CHECK_NEAR(col[k], exact + 0.25, 1e-5);
+	}
+	CHECK(fabs(col[0] - img[p * 4 + 0]) > 0.1); /* 0.52 against 0.27 + 0.1 x 0.5 */
+	CHECK_NEAR(col[1], img[p * 4 + 1], 1e-5);   /* grey channel: the same */
+	CHECK(r.alpha[p] == img[p * 4 + 3]);
+	recimg_free(&r);
+	free(img);
+	free(aov);
+	tgrid_free(wall);
+	tgrid_free(glass);
+}
+
+/*
+ * Opaque full coverage: every pixel's weights sum to 1 and equal alpha;
+ * flat shading of a large quad coalesces 16 samples to 1 entry per pixel;
+ * a smooth grid aligned on 2x2-pixel micropolygons touches at most the
+ * 4 vertices of the micropolygon a pixel lies in.
+ */
+static void test_record_coverage(void)
+{
+	uint32_t W = 12, H = 10;
+	const float white[3] = { 1, 1, 1 };
+	struct tgrid *big = rect_grid(-3, -3, 20, 20, 5, white, 1.0f);
+	big->g.id0 = 77;
+	struct reyes_hider_grid *g = &big->g;
+	static const struct {
+		enum reyes_filter f;
+		float w;
+	} cases[] = { { REYES_FILTER_BOX, 1 }, { REYES_FILTER_GAUSSIAN, 2 },
+		      { REYES_FILTER_CATMULLROM, 3 }, { REYES_FILTER_SINC, 4 } };
+	for (size_t c = 0; c < sizeof(cases) / sizeof(cases[0]); c++) {
+		struct reyes_hider_opts o = opts_default(W, H, 4);
+		o.filter = cases[c].f;
+		o.filter_width[0] = o.filter_width[1] = cases[c].w;
+		struct recimg r;
+		render_record(&o, &g, 1, 5, 4, &r);
+		double worst = 0;
+		int bad = 0;
+		for (size_t p = 0; p < (size_t)W * H; p++) {
+			double sum = 0;
+			for (uint32_t i = 0; i < r.count[p]; i++)
+				sum += r.e[r.start[p] + i].weight;
+			worst = fmax(worst, fabs(sum - 1.0));
+			worst = fmax(worst, fabs(sum - r.alpha[p]));
+			bad += r.count[p] != 1 || r.e[r.start[p]].id != 77;
+		}
+		CHECK_NEAR(worst, 0.0, 1e-5);
+		CHECK(bad == 0);
+		recimg_free(&r);
+	}
+
+	/* Smooth, micropolygons 2x2 pixels, vertices on even pixel corners. */
+	uint32_t nu = 7, nv = 6;
+	struct tgrid *t = tgrid_new(nu, nv);
+	for (uint32_t j = 0; j < nv; j++) {
+		for (uint32_t i = 0; i < nu; i++) {
+			size_t p = (size_t)j * nu + i;
+			t->x[0][p] = 2.0f * i;
+			t->y[0][p] = 2.0f * j;
+			t->z[0][p] = 4;
+		}
+	}
+	tgrid_colour(t, white, 1.0f);
+	g = tgrid_static(t);
+	g->smooth = true;
+	struct reyes_hider_opts o = opts_default(W, H, 4);
+	struct recimg r;
+	render_record(&o, &g, 1, W, H, &r);
+	int bad = 0;
+	double worst = 0;
+	for (uint32_t y = 0; y < H; y++) {
+		for (uint32_t x = 0; x < W; x++) {
+			size_t p = (size_t)y * W + x;
+			uint32_t q0 = (y / 2) * nu + x / 2;
+			uint32_t ok[4] = { q0, q0 + 1, q0 + nu, q0 + nu + 1 };
+			double sum = 0;
+			for (uint32_t i = 0; i < r.count[p]; i++) {
+				uint32_t id = r.e[r.start[p] + i].id;
+				bad += id != ok[0] && id != ok[1] && id != ok[2] && id != ok[3];
+				sum += r.e[r.start[p] + i].weight;
+			}
+			bad += r.count[p] < 3 || r.count[p] > 4;
+			worst = fmax(worst, fabs(sum - 1.0));
+		}
+	}
+	CHECK(bad == 0);
+	CHECK_NEAR(worst, 0.0, 1e-5);
+	recimg_free(&r);
+	tgrid_free(t);
+	tgrid_free(big);
+}
+
+/* Matte: no entries of its own; an opaque matte hides what is behind. */
+static void test_record_matte(void)
+{
+	uint32_t W = 8, H = 8;
+	const float white[3] = { 1, 1, 1 };
+	struct tgrid *m = rect_grid(0, 0, 4, 8, 2, white, 1.0f);
+	struct tgrid *wall = rect_grid(2, 0, 8, 8, 5, white, 1.0f);
+	m->g.matte = true;
+	m->g.id0 = 10;
+	wall->g.id0 = 20;
+	struct reyes_hider_grid *g[2] = { &m->g, &wall->g };
+	struct reyes_hider_opts o = opts_default(W, H, 4);
+	struct recimg r;
+	render_record(&o, g, 1, W, H, &r); /* the matte alone */
+	uint32_t total = 0;
+	for (size_t p = 0; p < (size_t)W * H; p++)
+		total += r.count[p];
+	CHECK(total == 0);
+	CHECK(r.alpha[3 * W + 1] == 0.0f);
+	CHECK(r.z[3 * W + 1] == 2.0f);
+	recimg_free(&r);
+
+	render_record(&o, g, 2, 3, 3, &r);
+	for (uint32_t y = 0; y < H; y++) {
+		CHECK(r.count[y * W + 1] == 0); /* matte only */
+		CHECK(r.count[y * W + 3] == 0); /* the wall behind the matte */
+		CHECK(r.count[y * W + 5] == 1 && r.e[r.start[y * W + 5]].id == 20);
+		CHECK(r.alpha[y * W + 3] == 0.0f && r.alpha[y * W + 5] == 1.0f);
+	}
+	recimg_free(&r);
+
+	/* Half-transparent matte: the wall behind it gets half weight. */
+	tgrid_colour(m, white, 0.5f);
+	render_record(&o, g, 2, W, H, &r);
+	CHECK(r.count[3 * W + 3] == 1);
+	CHECK_NEAR(r.e[r.start[3 * W + 3]].weight, 0.5, 1e-6);
+	CHECK_NEAR(r.alpha[3 * W + 3], 0.5, 1e-6);
+	recimg_free(&r);
+	tgrid_free(m);
+	tgrid_free(wall);
+}
+
+/*
+ * Ids past 2^32 - 1: the micropolygons that would use them are dropped and
+ * reported once on stderr; those below still record their ids.
+ */
+static void test_record_id_overflow(void)
+{
+	uint32_t W = 8, H = 4;
+	/* 3 x 2 vertices over [0, 8) x [0, 4): vertex 0 id 2^32-2, vertex 1 2^32-1, then none. */
+	struct tgrid *t = tgrid_new(3, 2);
+	static const float xs[6] = { 0, 4, 8, 0, 4, 8 }, ys[6] = { 0, 0, 0, 4, 4, 4 };
+	const float white[3] = { 1, 1, 1 };
+	for (int i = 0; i < 6; i++) {
+		t->x[0][i] = xs[i];
+		t->y[0][i] = ys[i];
+		t->z[0][i] = 3;
+	}
+	tgrid_colour(t, white, 1.0f);
+	struct reyes_hider_grid *g = tgrid_static(t);
+	g->id0 = UINT32_MAX - 1;
+	struct reyes_hider_opts o = opts_default(W, H, 2);
+
+	fflush(stderr);
+	FILE *tmp = tmpfile();
+	int saved = dup(fileno(stderr));
+	dup2(fileno(tmp), fileno(stderr));
+
+	struct recimg r;
+	render_record(&o, &g, 1, 4, 4, &r); /* flat: vertices 0 and 1 */
+	int bad = 0;
+	for (uint32_t y = 0; y < H; y++) {
+		for (uint32_t x = 0; x < W; x++) {
+			size_t p = (size_t)y * W + x;
+			uint32_t want = x < 4 ? UINT32_MAX - 1 : UINT32_MAX;
+			bad += r.count[p] != 1 || r.e[r.start[p]].id != want;
+		}
+	}
+	CHECK(bad == 0);
+	recimg_free(&r);
+	g->smooth = true; /* now every quad needs vertices 4 and 5: all dropped */
+	render_record(&o, &g, 1, 4, 4, &r);
+	uint32_t total = 0;
+	for (size_t p = 0; p < (size_t)W * H; p++) {
+		total += r.count[p];
+		CHECK(r.alpha[p] == 0.0f);
+	}
+	CHECK(total == 0);
+	recimg_free(&r);
+
+	fflush(stderr);
+	dup2(saved, fileno(stderr));
+	close(saved);
+	char msg[1024] = "";
+	rewind(tmp);
+	size_t len = fread(msg, 1, sizeof(msg) - 1, tmp);
+	msg[len] = '\0';
+	fclose(tmp);
+	/* One hider per render_record call: reported once in the second, not per bucket. */
+	const char *hit = strstr(msg, "ids pass 2^32 - 1");
+	CHECK(hit != NULL);
+	CHECK(hit && strstr(hit + 1, "ids pass 2^32 - 1") == NULL);
+	tgrid_free(t);
+}
+
+/*
+ * The wrong finish: reyes_hider_end on a record-mode hider and
+ * reyes_hider_end_record on a normal one return 0, report once, and give
+ * empty pixels (offsets all 0, alpha 0, z 1e30); so do a finish with no
+ * bucket started and a NULL hider.
+ */
+static void test_record_wrong_mode(void)
+{
+	const float white[3] = { 1, 1, 1 };
+	struct tgrid *t = rect_grid(0, 0, 8, 8, 3, white, 1.0f);
+	struct reyes_hider_opts o = opts_default(8, 8, 2);
+	const uint32_t *off = NULL;
+	const struct reyes_vis_entry *ent = NULL;
+	float rgba[4 * 16], alpha[16], z[16];
+
+	fflush(stderr);
+	FILE *tmp = tmpfile();
+	int saved = dup(fileno(stderr));
+	dup2(fileno(tmp), fileno(stderr));
+
+	struct reyes_hider *h = reyes_hider_create(&o);
+	reyes_hider_begin(h, 0, 0, 4, 4);
+	reyes_hider_add(h, &t->g);
+	for (int i = 0; i < 16; i++)
+		alpha[i] = z[i] = NAN;
+	CHECK(reyes_hider_end_record(h, &off, &ent, alpha, z) == 0);
+	CHECK(off != NULL && ent != NULL);
+	int bad = 0;
+	for (int i = 0; i < 16; i++)
+		bad += off[i + 1] != 0 || alpha[i] != 0.0f || z[i] != NO_DEPTH;
+	CHECK(off[0] == 0 && bad == 0);
+	/* Still usable in its own mode. */
+	reyes_hider_begin(h, 0, 0, 4, 4);
+	reyes_hider_add(h, &t->g);
+	CHECK(reyes_hider_end(h, rgba, z, NULL) == 4 * 4 * 4);
+	CHECK(rgba[3] == 1.0f);
+	reyes_hider_destroy(h);
+
+	o.record = true;
+	h = reyes_hider_create(&o);
+	CHECK(reyes_hider_end_record(h, &off, &ent, alpha, z) == 0); /* no bucket yet */
+	CHECK(off != NULL && off[0] == 0 && ent != NULL);
+	reyes_hider_begin(h, 0, 0, 4, 4);
+	reyes_hider_add(h, &t->g);
+	for (int i = 0; i < 64; i++)
+		rgba[i] = NAN;
+	CHECK(reyes_hider_end(h, rgba, z, NULL) == 0);
+	bad = 0;
+	for (int i = 0; i < 16; i++)
+		bad += rgba[i * 4] != 0.0f || rgba[i * 4 + 3] != 0.0f || z[i] != NO_DEPTH;
+	CHECK(bad == 0);
+	/* The bucket is finished: a second finish records nothing. */
+	CHECK(reyes_hider_end_record(h, &off, &ent, NULL, NULL) == 0);
+	CHECK(off[16] == 0);
+	reyes_hider_begin(h, 0, 0, 4, 4);
+	reyes_hider_add(h, &t->g);
+	CHECK(reyes_hider_end_record(h, &off, &ent, NULL, NULL) == 4 * 4 * 4);
+	CHECK(off[16] == 16 && ent[0].weight == 1.0f);
+	/* Ci may be NULL in record mode. */
+	t->g.Ci = NULL;
+	reyes_hider_begin(h, 4, 4, 8, 8);
+	reyes_hider_add(h, &t->g);
+	CHECK(reyes_hider_end_record(h, &off, &ent, alpha, NULL) == 4 * 4 * 4);
+	CHECK(off[16] == 16 && alpha[15] == 1.0f);
+	reyes_hider_destroy(h);
+
+	CHECK(reyes_hider_end_record(NULL, &off, &ent, alpha, z) == 0);
+	CHECK(off != NULL && off[0] == 0 && ent != NULL);
+
+	fflush(stderr);
+	dup2(saved, fileno(stderr));
+	close(saved);
+	char msg[2048] = "";
+	rewind(tmp);
+	size_t len = fread(msg, 1, sizeof(msg) - 1, tmp);
+	msg[len] = '\0';
+	fclose(tmp);
+	CHECK(strstr(msg, "reyes_hider_end_record on a hider not in record mode") != NULL);
+	CHECK(strstr(msg, "reyes_hider_end on a hider in record mode") != NULL);
+	tgrid_free(t);
+}
+
 /* ---- throughput ---- */
 
 static double now(void)
@@ -969,6 +1596,110 @@ static void bench(void)
 	free(grids);
 }
 
+/*
+ * Record against normal mode on the same scene: 256x256 in 64x64 buckets,
+ * 4x4 samples, Gaussian 2: an opaque smooth ground of ~1-pixel
+ * micropolygons in 16x16 grids, a flat 50% layer over half the image and
+ * small opaque grids in front. Prints the ratio of the hider's time.
+ */
+static void bench_record(void)
+{
+	uint32_t W = 256, H = 256, B = 64, T = 16;
+	struct tgrid *grids[1024];
+	uint32_t ng = 0, id = 0;
+	for (int layer = 0; layer < 3; layer++) {
+		float cell = layer == 2 ? 0.7f : 1.0f;
+		uint32_t span = layer == 2 ? 40 : W / T;
+		for (uint32_t tj = 0; tj < span && ng < 1024; tj++) {
+			for (uint32_t ti = 0; ti < span && ng < 1024; ti++) {
+				if (layer == 1 && ti >= span / 2)
+					continue;
+				if (layer == 2 && ((ti * 7 + tj * 3) % 11) != 0)
+					continue;
+				struct tgrid *t = tgrid_new(T + 1, T + 1);
+				size_t n = (size_t)(T + 1) * (T + 1);
+				float ox = layer == 2 ? ti * 6.3f : ti * T * cell;
+				float oy = layer == 2 ? tj * 6.3f : tj * T * cell;
+				for (uint32_t j = 0; j <= T; j++) {
+					for (uint32_t i = 0; i <= T; i++) {
+						size_t p = (size_t)j * (T + 1) + i;
+						float x = ox + i * cell, y = oy + j * cell;
+						x += 0.3f * sinf(0.37f * y);
+						y += 0.3f * sinf(0.23f * x);
+						t->x[0][p] = x;
+						t->y[0][p] = y;
+						t->z[0][p] = (layer == 0 ? 20 : layer == 1 ? 10 : 5) +
+							     0.01f * x;
+						for (int k = 0; k < 3; k++) {
+							t->Ci[k * n + p] = 0.5f;
+							t->Oi[k * n + p] = layer == 1 ? 0.5f : 1.0f;
+						}
+					}
+				}
+				tgrid_static(t);
+				t->g.smooth = layer == 0;
+				t->g.id0 = id;
+				id += (uint32_t)n;
+				grids[ng++] = t;
+			}
+		}
+	}
+	double best[2] = { 1e30, 1e30 }, bend[2] = { 0, 0 };
+	uint64_t nent = 0;
+	float *rgba = malloc((size_t)B * B * 4 * sizeof(float));
+	float *z = malloc((size_t)B * B * sizeof(float));
+	for (int rep = 0; rep < 3; rep++) {
+		for (int mode = 0; mode < 2; mode++) {
+			struct reyes_hider_opts o = opts_default(W, H, 4);
+			o.filter = REYES_FILTER_GAUSSIAN;
+			o.filter_width[0] = o.filter_width[1] = 2;
+			o.record = mode == 1;
+			struct reyes_hider *h = reyes_hider_create(&o);
+			double t0 = now(), tend = 0;
+			nent = 0;
+			for (uint32_t y0 = 0; y0 < H; y0 += B) {
+				for (uint32_t x0 = 0; x0 < W; x0 += B) {
+					reyes_hider_begin(h, x0, y0, x0 + B, y0 + B);
+					float rx0, ry0, rx1, ry1;
+					reyes_hider_region(h, &rx0, &ry0, &rx1, &ry1);
+					for (uint32_t k = 0; k < ng; k++) {
+						const float *gx = grids[k]->x[0], *gy = grids[k]->y[0];
+						size_t last = (size_t)(T + 1) * (T + 1) - 1;
+						if (gx[last] < rx0 || gx[0] > rx1 || gy[last] < ry0 ||
+						    gy[0] > ry1)
+							continue;
+						reyes_hider_add(h, &grids[k]->g);
+					}
+					double te = now();
+					if (mode == 0) {
+						reyes_hider_end(h, rgba, z, NULL);
+					} else {
+						const uint32_t *off;
+						const struct reyes_vis_entry *ent;
+						reyes_hider_end_record(h, &off, &ent, rgba, z);
+						nent += off[B * B];
+					}
+					tend += now() - te;
+				}
+			}
+			double dt = now() - t0;
+			if (dt < best[mode])
+				bend[mode] = tend;
+			best[mode] = fmin(best[mode], dt);
+			reyes_hider_destroy(h);
+		}
+	}
+	printf("bench record: %ux%u, %u grids, 4x4 samples, gaussian 2: normal %.3f s (end %.3f), "
+	       "record %.3f s (end %.3f): ratio %.2f, %.2f entries per pixel\n",
+	       W, H, ng, best[0], bend[0], best[1], bend[1], best[1] / best[0],
+	       (double)nent / (W * H));
+	CHECK(nent > (uint64_t)W * H);
+	free(rgba);
+	free(z);
+	for (uint32_t k = 0; k < ng; k++)
+		tgrid_free(grids[k]);
+}
+
 int main(void)
 {
 	RUN(test_filter_values);
@@ -985,6 +1716,14 @@ int main(void)
 	RUN(test_matte);
 	RUN(test_determinism);
 	RUN(test_bad_input);
+	RUN(test_record_identity);
+	RUN(test_record_buckets);
+	RUN(test_record_coloured_opacity);
+	RUN(test_record_coverage);
+	RUN(test_record_matte);
+	RUN(test_record_id_overflow);
+	RUN(test_record_wrong_mode);
 	RUN(bench);
+	RUN(bench_record);
 	return test_finish();
 }

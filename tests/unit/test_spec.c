@@ -1,14 +1,21 @@
 /*
  * The specializer: which instructions are static, dynamic and dead, what is
- * cached, and that the caching program computes those cached values exactly
- * as the original shader does.
+ * cached, that the caching program computes those cached values exactly as
+ * the original shader does, and that the caching program followed by the
+ * dynamic program (both on the interpreter) computes what the original
+ * shader computes, on samples in any order.
+ *
+ * Everything here runs on the CPU: no test needs EGL or skips.
  */
 #include "spec.h"
 #include "builtin.h"
 #include "exec.h"
+#include "lighthost.h"
 #include "test.h"
 
+#include <stdint.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 static struct sl_program *compile(const char *src)
@@ -230,6 +237,900 @@ static void test_errors(void)
 	sl_program_destroy(p);
 }
 
+/* ------------------------------------------------------------------------ */
+/* The dynamic program against the original shader                          */
+
+/*
+ * The caching program, then the dynamic program reading its cache, both on
+ * the interpreter, must give the original shader's Ci, Oi and dynamic output
+ * parameters. Differences are |dynamic - original| / max(1, |original|) and
+ * must stay within DYN_TOL. Both paths run the same instructions with the
+ * same operands on the same interpreter, so the results are expected to be
+ * bit-identical (the printed maxima are 0, and the tests count exactly equal
+ * values); the tolerance is what the GPU runtime will be held to against
+ * this reference, not slack that this comparison needs.
+ */
+#define DYN_TOL 1e-5
+#define NU 8
+#define NV 6
+#define NPTS (NU * NV)
+#define MAXL 8
+#define MAXP 64
+
+static uint32_t rng_state = 1;
+
+static void rng_seed(uint32_t s)
+{
+	rng_state = s ? s : 1u;
+}
+
+/* Uniform in [lo, hi) (xorshift32). */
+static float rnd(float lo, float hi)
+{
+	rng_state ^= rng_state << 13;
+	rng_state ^= rng_state >> 17;
+	rng_state ^= rng_state << 5;
+	return lo + (hi - lo) * (float)(rng_state >> 8) * (1.0f / 16777216.0f);
+}
+
+/* A random permutation of 0..n-1. */
+static void shuffle(uint32_t *order, uint32_t n)
+{
+	for (uint32_t i = 0; i < n; i++)
+		order[i] = i;
+	for (uint32_t i = n; i-- > 1;) {
+		uint32_t j = (uint32_t)rnd(0, (float)(i + 1));
+		if (j > i)
+			j = i;
+		uint32_t t = order[i];
+		order[i] = order[j];
+		order[j] = t;
+	}
+}
+
+static struct sl_program *load(const char *name)
+{
+	const char *dir = getenv("RELIGHT_SOURCE_DIR");
+	char path[1024];
+	snprintf(path, sizeof(path), "%s/shaders/%s.sl", dir ? dir : ".", name);
+	struct sl_program *p = sl_compile_file(path, NULL);
+	if (!p)
+		fprintf(stderr, "cannot compile %s\n", path);
+	return p;
+}
+
+/* The scene's coordinate systems: "shader" of the surface, "world", and each light's. */
+static const char *const space_names[] = { "shader", "world" };
+static float space_mats[2][16];
+static float light_mats[MAXL][16];
+
+/* Rotation by @angle about the z axis, then a translation (row vectors). */
+static void rot_z(float m[16], float angle, float tx, float ty, float tz)
+{
+	float c = cosf(angle), s = sinf(angle);
+	float r[16] = { c, s, 0, 0, -s, c, 0, 0, 0, 0, 1, 0, tx, ty, tz, 1 };
+	memcpy(m, r, sizeof(r));
+}
+
+static void init_spaces(void)
+{
+	rot_z(space_mats[0], 0.4f, 0.25f, -0.5f, 0.5f);
+	rot_z(space_mats[1], -1.1f, 1, 2, -3);
+	for (int k = 0; k < MAXL; k++)
+		rot_z(light_mats[k], 0.2f * (float)k - 0.5f, 0.1f * (float)k, -0.1f, 0.05f * (float)k);
+}
+
+static void quiet_print(void *user, const char *text)
+{
+	(void)user;
+	(void)text;
+}
+
+/* Run surface executor @x with @nl lights (the scene's spaces). */
+static bool run_lit(struct sl_exec *x, struct sl_exec **lights, int nl)
+{
+	struct sl_lighthost lh;
+	sl_lighthost_init(&lh, nl ? lights : NULL, nl);
+	lh.host.print = quiet_print;
+	lh.space_names = space_names;
+	lh.space_mats = (const float (*)[16])space_mats;
+	lh.nspaces = 2;
+	lh.light_shader_mats = (const float (*)[16])light_mats;
+	return sl_exec_run(x, &lh.host);
+}
+
+/* Random shading inputs of @prog's globals on an NU x NV grid, planar (n per component). */
+struct inputs {
+	float *glob[SL_GLOBAL_COUNT];
+};
+
+static bool computed_global(int g)
+{
+	return g == SL_GLOBAL_CI || g == SL_GLOBAL_OI || g == SL_GLOBAL_L || g == SL_GLOBAL_CL ||
+	       g == SL_GLOBAL_OL;
+}
+
+static void inputs_init(struct inputs *in, const struct sl_program *prog, float du)
+{
+	static const float eye[3] = { 0.1f, -0.2f, 0.3f };
+	memset(in, 0, sizeof(*in));
+	for (int g = 0; g < SL_GLOBAL_COUNT; g++) {
+		if (prog->global_reg[g] < 0 || computed_global(g))
+			continue;
+		float *v = calloc(3 * NPTS, sizeof(float));
+		for (uint32_t i = 0; i < NPTS; i++) {
+			float r[3];
+			switch (g) {
+			case SL_GLOBAL_P:
+				r[0] = rnd(-1, 1);
+				r[1] = rnd(-1, 1);
+				r[2] = rnd(2, 4);
+				break;
+			case SL_GLOBAL_I:
+				/* I = P - E */
+				for (int c = 0; c < 3; c++)
+					r[c] = (in->glob[SL_GLOBAL_P] ? in->glob[SL_GLOBAL_P][c * NPTS + i]
+								      : rnd(-1, 1)) - eye[c];
+				break;
+			case SL_GLOBAL_E:
+				for (int c = 0; c < 3; c++)
+					r[c] = eye[c];
+				break;
+			case SL_GLOBAL_DU: case SL_GLOBAL_DV:
+				r[0] = r[1] = r[2] = du;
+				break;
+			case SL_GLOBAL_CS: case SL_GLOBAL_OS:
+				for (int c = 0; c < 3; c++)
+					r[c] = rnd(0.2f, 1);
+				break;
+			case SL_GLOBAL_NCOMPS:
+				r[0] = r[1] = r[2] = 3;
+				break;
+			case SL_GLOBAL_TIME:
+				r[0] = r[1] = r[2] = 0.25f;
+				break;
+			default:
+				for (int c = 0; c < 3; c++)
+					r[c] = rnd(-1, 1);
+				break;
+			}
+			for (int c = 0; c < 3; c++)
+				v[c * NPTS + i] = r[c];
+		}
+		in->glob[g] = v;
+	}
+}
+
+static void inputs_finish(struct inputs *in)
+{
+	for (int g = 0; g < SL_GLOBAL_COUNT; g++)
+		free(in->glob[g]);
+}
+
+static void inputs_set(const struct inputs *in, struct sl_exec *x)
+{
+	CHECK(sl_exec_set_grid(x, NU, NV));
+	uint32_t st = sl_exec_stride(x);
+	for (int g = 0; g < SL_GLOBAL_COUNT; g++) {
+		bool vary;
+		float *d = in->glob[g] ? sl_exec_global(x, (enum sl_global)g, &vary) : NULL;
+		if (!d)
+			continue;
+		int nc = sl_type_ncomp(sl_global_type((enum sl_global)g).base);
+		for (int c = 0; c < nc; c++)
+			for (uint32_t i = 0; i < (vary ? NPTS : 1u); i++)
+				d[(size_t)c * (vary ? st : 1) + i] = in->glob[g][c * NPTS + i];
+	}
+}
+
+/* Parameter values of a surface: base (bake time) and, for dynamic ones, edited. */
+struct pvals {
+	float base[MAXP][3], edit[MAXP][3];
+	bool has_base[MAXP], has_edit[MAXP];
+};
+
+static bool editable(const struct sl_program *p, uint32_t k)
+{
+	const struct sl_reg *r = &p->regs[p->params[k].reg];
+	return !p->params[k].output && !r->arraylen && p->params[k].name[0] != '_' &&
+	       (r->type == SL_TYPE_FLOAT || r->type == SL_TYPE_COLOR || r->type == SL_TYPE_POINT);
+}
+
+static void random_value(const struct sl_program *p, uint32_t k, float v[3])
+{
+	if (p->regs[p->params[k].reg].type == SL_TYPE_POINT) {
+		v[0] = rnd(-1, 1);
+		v[1] = rnd(-1, 1);
+		v[2] = rnd(2, 4);
+	} else {
+		for (int c = 0; c < 3; c++)
+			v[c] = rnd(0.05f, 1);
+	}
+}
+
+static void set_params(struct sl_exec *x, const struct sl_program *p, const struct pvals *pv,
+		       bool edited)
+{
+	for (uint32_t k = 0; k < p->nparams && k < MAXP; k++) {
+		const float *v = edited && pv->has_edit[k] ? pv->edit[k] :
+				 pv->has_base[k] ? pv->base[k] : NULL;
+		if (v)
+			CHECK(sl_exec_set_param(x, p->params[k].name, v,
+						(uint32_t)sl_reg_ncomp(&p->regs[p->params[k].reg])));
+	}
+}
+
+/* Compare output @r of @dyn at sample j with @orig at point order[j]; the largest difference. */
+static double compare_reg(struct sl_exec *dyn, struct sl_exec *orig, int32_t r,
+			  const uint32_t *order, uint32_t n, const char *label, long *exact,
+			  long *values)
+{
+	const struct sl_program *p = sl_exec_program(orig);
+	const struct sl_reg *rg = &p->regs[r];
+	bool dv = sl_exec_program(dyn)->regs[r].varying, ov = rg->varying;
+	uint32_t ds = sl_exec_stride(dyn), os = sl_exec_stride(orig);
+	int tot = sl_reg_ncomp(rg) * (rg->arraylen > 0 ? rg->arraylen : 1);
+	double maxerr = 0;
+	int reported = 0;
+	for (uint32_t j = 0; j < n; j++) {
+		uint32_t i = order ? order[j] : j;
+		if (rg->type == SL_TYPE_STRING) {
+			const char *a = sl_exec_reg_strings(dyn, r)[dv ? j : 0];
+			const char *b = sl_exec_reg_strings(orig, r)[ov ? i : 0];
+			CHECK_STR(a, b);
+			continue;
+		}
+		for (int c = 0; c < tot; c++) {
+			float a = sl_exec_reg(dyn, r)[(size_t)c * (dv ? ds : 1) + (dv ? j : 0)];
+			float b = sl_exec_reg(orig, r)[(size_t)c * (ov ? os : 1) + (ov ? i : 0)];
+			double e = fabs((double)a - b) / fmax(1.0, fabs((double)b));
+			(*values)++;
+			if (a == b)
+				(*exact)++;
+			if (!(e <= DYN_TOL) && reported++ < 4)
+				fprintf(stderr, "%s: %s[%d] at sample %u (point %u): dynamic %.9g, "
+					"original %.9g\n", label, sl_ir_reg_name(p, r), c, j, i, a, b);
+			if (!(e <= maxerr))
+				maxerr = e;
+		}
+	}
+	return maxerr;
+}
+
+/* Results of one comparison. */
+struct dyn_result {
+	double maxerr;      /* largest difference, -1 if nothing ran */
+	float maxci;        /* largest component of the original's Ci */
+	long exact, values;
+	uint32_t ncached, ndynamic, nstatic;
+};
+
+/*
+ * Bake @surf (parameters @pv's base values) with the caching program on a
+ * random grid, run the dynamic program on the samples in a random order with
+ * @lights and the dynamic parameters @dyn at their edited values, and
+ * compare with the original shader run with those values.
+ */
+static struct dyn_result compare_dynamic(const char *label, struct sl_program *surf,
+					 const struct pvals *pv, const char *const *dyn,
+					 size_t ndyn, struct sl_exec **lights, int nl,
+					 uint32_t seed)
+{
+	struct dyn_result res = { .maxerr = -1 };
+	rng_seed(seed);
+	struct inputs in;
+	inputs_init(&in, surf, 1.0f / (NU - 1));
+	uint32_t order[NPTS];
+	shuffle(order, NPTS);
+	struct sl_spec *s = sl_specialize(surf, dyn, ndyn, stderr);
+	CHECK(s != NULL);
+	struct sl_exec *orig = sl_exec_create(surf, NPTS);
+	struct sl_exec *ce = s ? sl_exec_create(s->caching, NPTS) : NULL;
+	struct sl_exec *de = s ? sl_exec_create(s->dynamic, NPTS) : NULL;
+	CHECK(orig && ce && de);
+	if (!orig || !ce || !de)
+		goto out;
+	res.ncached = s->ncached;
+	res.ndynamic = s->ndynamic;
+	res.nstatic = s->nstatic;
+
+	/* bake time: the old values of every parameter, no lights */
+	inputs_set(&in, ce);
+	set_params(ce, surf, pv, false);
+	CHECK(run_lit(ce, NULL, 0));
+	CHECK(sl_spec_copy_cache(s, de, ce, order, NPTS));
+	set_params(de, surf, pv, false);
+
+	/* Two runs of the dynamic program as a preview makes them, before and
+	 * after the edit: nothing of the first may leak into the second. */
+	res.maxerr = 0;
+	for (int edit = 0; edit < 2; edit++) {
+		inputs_set(&in, orig);
+		set_params(orig, surf, pv, edit);
+		CHECK(run_lit(orig, lights, nl));
+		if (edit)
+			set_params(de, surf, pv, true);
+		CHECK(run_lit(de, lights, nl));
+		for (uint32_t k = 0; k < s->slice.noutputs; k++) {
+			double e = compare_reg(de, orig, s->slice.outputs[k], order, NPTS, label,
+					       &res.exact, &res.values);
+			if (!(e <= res.maxerr))
+				res.maxerr = e;
+		}
+	}
+	CHECK(res.maxerr <= DYN_TOL);
+	int32_t ci = surf->global_reg[SL_GLOBAL_CI];
+	if (ci >= 0)
+		for (uint32_t i = 0; i < 3 * (size_t)sl_exec_stride(orig); i++)
+			if (sl_exec_reg(orig, ci)[i] > res.maxci)
+				res.maxci = sl_exec_reg(orig, ci)[i];
+out:
+	sl_exec_destroy(orig);
+	sl_exec_destroy(ce);
+	sl_exec_destroy(de);
+	sl_spec_destroy(s);
+	inputs_finish(&in);
+	return res;
+}
+
+/* Light instances of the scene, each with random parameters aimed at the grid (around z = 3). */
+struct light_set {
+	struct sl_program *prog[MAXL];  /* owned when own[k] */
+	bool own[MAXL];
+	struct sl_exec *x[MAXL];
+	int n;
+};
+
+static void set3(struct sl_exec *x, const char *name, float a, float b, float c)
+{
+	float v[3] = { a, b, c };
+	CHECK(sl_exec_set_param(x, name, v, 3));
+}
+
+static void set1(struct sl_exec *x, const char *name, float a)
+{
+	CHECK(sl_exec_set_param(x, name, &a, 1));
+}
+
+/* Add a light of program @p (owned if @own) with random parameters for a light named @kind. */
+static void add_light(struct light_set *ls, struct sl_program *p, bool own, const char *kind)
+{
+	if (!p || ls->n >= MAXL)
+		return;
+	/* room for the two grids of test_dynamic_any_order */
+	struct sl_exec *x = sl_exec_create(p, 2 * NPTS);
+	CHECK(x != NULL);
+	if (!x)
+		return;
+	ls->prog[ls->n] = p;
+	ls->own[ls->n] = own;
+	ls->x[ls->n++] = x;
+	if (sl_program_find_param(p, "lightcolor") >= 0)
+		set3(x, "lightcolor", rnd(0.5f, 1), rnd(0.5f, 1), rnd(0.5f, 1));
+	if (!strcmp(kind, "ambientlight"))
+		set1(x, "intensity", rnd(0.05f, 0.3f));
+	if (!strcmp(kind, "distantlight")) {
+		set3(x, "from", 0, 0, 0);
+		set3(x, "to", rnd(-0.5f, 0.5f), rnd(-0.5f, 0.5f), 1);
+		set1(x, "intensity", rnd(0.5f, 1.5f));
+	}
+	if (!strcmp(kind, "pointlight") || !strcmp(kind, "spotlight") ||
+	    !strcmp(kind, "shadowspot") || !strcmp(kind, "msglight")) {
+		set3(x, "from", rnd(-1, 1), rnd(0.5f, 2), rnd(0, 1));
+		set1(x, "intensity", rnd(2, 8));
+	}
+	if (!strcmp(kind, "spotlight") || !strcmp(kind, "shadowspot")) {
+		set3(x, "to", rnd(-0.3f, 0.3f), rnd(-0.5f, 0.5f), 3.5f);
+		set1(x, "coneangle", rnd(0.4f, 0.9f));
+		set1(x, "conedeltaangle", rnd(0.05f, 0.3f));
+		set1(x, "beamdistribution", rnd(1, 3));
+	}
+	if (!strcmp(kind, "shadowspot"))
+		CHECK(sl_exec_set_param_string(x, "shadowname", ""));
+	if (!strcmp(kind, "msglight"))
+		set1(x, "weight", rnd(0.25f, 2));
+	if (!strcmp(kind, "uberlight")) {
+		CHECK(sl_exec_set_param_string(x, "lighttype", "spot"));
+		set1(x, "intensity", rnd(2, 4));
+		set1(x, "falloff", 1);
+		set1(x, "beamdistribution", rnd(1, 2));
+		set1(x, "width", rnd(2, 4));
+		set1(x, "height", rnd(2, 3));
+		set1(x, "wedge", 1);
+		set1(x, "hedge", 1);
+		set1(x, "roundness", rnd(0.3f, 1));
+		set1(x, "barnleft", 1.5f);
+		set1(x, "barnedge", 0.5f);
+		set1(x, "nearedge", 0.5f);
+		set1(x, "cutoff", 10);
+		set1(x, "faredge", 2);
+	}
+}
+
+static void light_set_free(struct light_set *ls)
+{
+	for (int k = 0; k < ls->n; k++) {
+		sl_exec_destroy(ls->x[k]);
+		if (ls->own[k])
+			sl_program_destroy(ls->prog[k]);
+	}
+}
+
+/* Every light of shaders/, several at once (two point lights), random parameters. */
+static const char *const lightnames[] = {
+	"ambientlight", "distantlight", "pointlight", "spotlight", "shadowspot", "uberlight",
+	"pointlight",
+};
+#define NLIGHT (sizeof(lightnames) / sizeof(lightnames[0]))
+
+static void library_lights(struct light_set *ls, uint32_t seed)
+{
+	memset(ls, 0, sizeof(*ls));
+	rng_seed(seed);
+	for (size_t k = 0; k < NLIGHT; k++)
+		add_light(ls, load(lightnames[k]), true, lightnames[k]);
+	CHECK(ls->n == (int)NLIGHT);
+}
+
+/* Totals of a family of comparisons. */
+struct tally {
+	int cases;
+	double maxerr;
+	long exact, values;
+};
+
+static void tally_add(struct tally *t, const struct dyn_result *r)
+{
+	t->cases++;
+	if (!(r->maxerr <= t->maxerr))
+		t->maxerr = r->maxerr;
+	t->exact += r->exact;
+	t->values += r->values;
+}
+
+/*
+ * @surf with no surface parameter dynamic, with each editable parameter
+ * dynamic alone (set to a new value for the dynamic run), and with all of
+ * them dynamic at once.
+ */
+static void compare_all_ways(const char *name, struct sl_program *surf, struct light_set *ls,
+			     uint32_t seed, struct tally *t, bool lit)
+{
+	struct pvals pv;
+	memset(&pv, 0, sizeof(pv));
+	rng_seed(seed);
+	const char *names[MAXP];
+	size_t nedit = 0;
+	for (uint32_t k = 0; k < surf->nparams && k < MAXP; k++) {
+		if (!editable(surf, k))
+			continue;
+		random_value(surf, k, pv.base[k]);
+		random_value(surf, k, pv.edit[k]);
+		pv.has_base[k] = true;
+		names[nedit++] = surf->params[k].name;
+	}
+	char label[160];
+	struct pvals one = pv;
+	snprintf(label, sizeof(label), "%s, lights dynamic", name);
+	struct dyn_result r = compare_dynamic(label, surf, &pv, NULL, 0, ls->x, ls->n, seed + 1);
+	tally_add(t, &r);
+	if (lit)
+		CHECK(r.maxci > 0.05f);
+	printf("%-46s %2u cached, %2u static, %2u dynamic instructions, max diff %.2e\n", label,
+	       r.ncached, r.nstatic, r.ndynamic, r.maxerr);
+	for (uint32_t k = 0; k < surf->nparams && k < MAXP; k++) {
+		if (!editable(surf, k))
+			continue;
+		memset(one.has_edit, 0, sizeof(one.has_edit));
+		one.has_edit[k] = true;
+		const char *dyn = surf->params[k].name;
+		snprintf(label, sizeof(label), "%s, %s dynamic", name, dyn);
+		r = compare_dynamic(label, surf, &one, &dyn, 1, ls->x, ls->n, seed + 2 + k);
+		tally_add(t, &r);
+	}
+	if (nedit > 1) {
+		for (uint32_t k = 0; k < MAXP; k++)
+			pv.has_edit[k] = pv.has_base[k];
+		snprintf(label, sizeof(label), "%s, all parameters dynamic", name);
+		r = compare_dynamic(label, surf, &pv, names, nedit, ls->x, ls->n, seed + 99);
+		tally_add(t, &r);
+		printf("%-46s %2u cached, %2u static, %2u dynamic instructions, max diff %.2e\n",
+		       label, r.ncached, r.nstatic, r.ndynamic, r.maxerr);
+	}
+}
+
+static const char *const surfaces[] = {
+	"constant", "defaultsurface", "matte", "metal", "plastic", "paintedplastic", "shinymetal",
+};
+#define NSURF (sizeof(surfaces) / sizeof(surfaces[0]))
+
+/* Each light alone lights some of the test points (the comparisons are not vacuous). */
+static void check_lights_reach(struct light_set *ls)
+{
+	struct sl_program *mp = load("matte");
+	CHECK(mp != NULL);
+	for (int l = 0; mp && l < ls->n; l++) {
+		struct inputs in;
+		rng_seed(3);
+		inputs_init(&in, mp, 1.0f / (NU - 1));
+		struct sl_exec *x = sl_exec_create(mp, NPTS);
+		CHECK(x != NULL);
+		if (x) {
+			inputs_set(&in, x);
+			CHECK(run_lit(x, &ls->x[l], 1));
+			int lit = 0;
+			const float *d = sl_exec_reg(x, mp->global_reg[SL_GLOBAL_CI]);
+			for (int i = 0; i < NPTS; i++)
+				lit += d[i] > 1e-4f;
+			CHECK(lit >= NPTS / 8);
+		}
+		sl_exec_destroy(x);
+		inputs_finish(&in);
+	}
+	sl_program_destroy(mp);
+}
+
+/* Every surface of shaders/ under every light of shaders/ at once. */
+static void test_dynamic_library(void)
+{
+	struct light_set ls;
+	library_lights(&ls, 77);
+	check_lights_reach(&ls);
+	struct tally t = { 0 };
+	for (size_t k = 0; k < NSURF; k++) {
+		struct sl_program *p = load(surfaces[k]);
+		CHECK(p != NULL);
+		if (!p)
+			continue;
+		bool lit = strcmp(surfaces[k], "constant") && strcmp(surfaces[k], "defaultsurface");
+		compare_all_ways(surfaces[k], p, &ls, 1000u * (uint32_t)(k + 1), &t, lit);
+		sl_program_destroy(p);
+	}
+	printf("library: %d comparisons, %ld values, %ld bit-identical, max diff %.2e (tol %.0e)\n",
+	       t.cases, t.values, t.exact, t.maxerr, DYN_TOL);
+	CHECK(t.cases >= (int)NSURF * 2);
+	CHECK(t.maxerr <= DYN_TOL);
+	light_set_free(&ls);
+}
+
+/*
+ * Shapes of dynamic code the library does not have: accumulation into a
+ * variable given a static start, loops around light-dependent code, break,
+ * a dynamic branch whose sides' noise is cached, an inlined function that
+ * returns under a light-dependent condition, uniform cached values, string
+ * conditions, output parameters, lightsource() and a light's surface(),
+ * illuminance categories, a point parameter.
+ */
+static const char *const shape_srcs[] = {
+	"surface accum(float Kd = 0.7; float gain = 1; output varying color glow = 0)\n"
+	"{\n"
+	"	normal Nf = faceforward(normalize(N), I);\n"
+	"	color C = Cs * 0.25;\n"
+	"	illuminance(P, Nf, PI / 2) {\n"
+	"		float w = 1;\n"
+	"		lightsource(\"weight\", w);\n"
+	"		C += w * Kd * Cl * (normalize(L) . Nf);\n"
+	"		if (comp(C, 0) > 3)\n"
+	"			break;\n"
+	"	}\n"
+	"	float i;\n"
+	"	for (i = 0; i < 3; i += 1)\n"
+	"		C += 0.1 * i * diffuse(Nf);\n"
+	"	glow = C * gain;\n"
+	"	Oi = Os;\n"
+	"	Ci = Os * C;\n"
+	"}\n",
+
+	"float pick(normal n; float k)\n"
+	"{\n"
+	"	color d = diffuse(n);\n"
+	"	if (comp(d, 1) > k)\n"
+	"		return 1;\n"
+	"	return comp(d, 0);\n"
+	"}\n"
+	"surface branchy(float k = 0.3; float Kd = 0.5; string mode = \"scaled\";\n"
+	"	point ctr = point \"shader\" (0, 0, 3))\n"
+	"{\n"
+	"	uniform float u = du * 3 + 1;\n"
+	"	normal Nf = normalize(N);\n"
+	"	float nz = noise(P * 4);\n"
+	"	float x = pick(Nf, k);\n"
+	"	color c;\n"
+	"	if (x > 0.5)\n"
+	"		c = color(nz, 1 - nz, 0.5);\n"
+	"	else\n"
+	"		c = color cellnoise(P * 3);\n"
+	"	if (mode == \"scaled\")\n"
+	"		c *= u;\n"
+	"	c *= 1 / (1 + distance(P, ctr));\n"
+	"	Oi = Os;\n"
+	"	Ci = Os * c * Kd;\n"
+	"}\n",
+
+	"surface cats(float Kd = 0.6; float Ks = 0.4; output varying float hits = 0)\n"
+	"{\n"
+	"	normal Nf = faceforward(normalize(N), I);\n"
+	"	vector V = -normalize(I);\n"
+	"	color a = 0, b = 0;\n"
+	"	illuminance(\"msg\", P, Nf, PI / 2) {\n"
+	"		a += Cl * (normalize(L) . Nf);\n"
+	"		hits += 1;\n"
+	"	}\n"
+	"	illuminance(\"-msg\", P) {\n"
+	"		b += Cl * pow(max(0, normalize(normalize(L) + V) . Nf), 8);\n"
+	"	}\n"
+	"	float j = 0;\n"
+	"	while (j < 4) {\n"
+	"		j += 1;\n"
+	"		if (comp(a, 0) * j > 2)\n"
+	"			continue;\n"
+	"		b += 0.01 * ambient();\n"
+	"	}\n"
+	"	Oi = Os;\n"
+	"	Ci = Os * (Kd * a + Ks * b) + Cs * 0.01 * u;\n"
+	"}\n",
+
+	/* E and time only in static code, but the lights read them (eyelight) */
+	"surface eyed(float Kd = 0.8)\n"
+	"{\n"
+	"	float fog = 1 / (1 + 0.1 * length(P - E)) + time * 0;\n"
+	"	normal Nf = faceforward(normalize(N), I);\n"
+	"	Oi = Os;\n"
+	"	Ci = Os * Cs * fog * Kd * diffuse(Nf);\n"
+	"}\n",
+};
+
+/* A light that reads the surface's Kd (message passing) and has a category. */
+static const char msglight_src[] =
+	"light msglight(float intensity = 1; color lightcolor = 1;\n"
+	"	point from = point \"shader\" (0, 1, 0); float weight = 0.5;\n"
+	"	string __category = \"msg\")\n"
+	"{\n"
+	"	float kd = 1;\n"
+	"	surface(\"Kd\", kd);\n"
+	"	illuminate(from)\n"
+	"		Cl = intensity * lightcolor * (0.5 + kd) / (L . L);\n"
+	"}\n";
+
+/* A light that reads the surface's E and time (the light host passes them on). */
+static const char eyelight_src[] =
+	"light eyelight(float intensity = 1; color lightcolor = 1;\n"
+	"	point from = point \"shader\" (0, 1, 0))\n"
+	"{\n"
+	"	illuminate(from)\n"
+	"		Cl = intensity * lightcolor * (1 + length(E) + time) / (L . L);\n"
+	"}\n";
+
+static void test_dynamic_shapes(void)
+{
+	struct light_set ls;
+	memset(&ls, 0, sizeof(ls));
+	rng_seed(5);
+	add_light(&ls, load("pointlight"), true, "pointlight");
+	add_light(&ls, compile(msglight_src), true, "msglight");
+	add_light(&ls, load("spotlight"), true, "spotlight");
+	add_light(&ls, load("ambientlight"), true, "ambientlight");
+	add_light(&ls, compile(msglight_src), true, "msglight");
+	add_light(&ls, compile(eyelight_src), true, "pointlight");
+	CHECK(ls.n == 6);
+	struct tally t = { 0 };
+	for (size_t k = 0; k < sizeof(shape_srcs) / sizeof(shape_srcs[0]); k++) {
+		struct sl_program *p = compile(shape_srcs[k]);
+		CHECK(p != NULL);
+		if (!p)
+			continue;
+		compare_all_ways(sl_program_name(p), p, &ls, 500u + 100u * (uint32_t)k, &t, true);
+		sl_program_destroy(p);
+	}
+	printf("shapes: %d comparisons, %ld values, %ld bit-identical, max diff %.2e (tol %.0e)\n",
+	       t.cases, t.values, t.exact, t.maxerr, DYN_TOL);
+	CHECK(t.maxerr <= DYN_TOL);
+	light_set_free(&ls);
+}
+
+/* Does program @p call built-in @name? */
+static bool program_calls(const struct sl_program *p, const char *name)
+{
+	for (uint32_t i = 0; i < p->ncode; i++) {
+		const struct sl_insn *in = &p->code[i];
+		if (in->op == SL_OP_CALL && in->bi >= 0 && !strcmp(sl_builtins[in->bi].name, name))
+			return true;
+	}
+	return false;
+}
+
+/*
+ * The marble with only the lights dynamic: the dynamic program has no noise
+ * (nor the pattern's mix, nor the dead `unused`), reads the pattern colour
+ * from the cache, and gives the original's colours.
+ */
+static void test_dynamic_marble(void)
+{
+	struct sl_program *p = compile(marble);
+	if (!p)
+		return;
+	struct sl_spec *s = sl_specialize(p, NULL, 0, NULL);
+	CHECK(s != NULL);
+	if (s) {
+		CHECK(!program_calls(s->dynamic, "noise"));
+		CHECK(!program_calls(s->dynamic, "mix"));
+		CHECK(!program_calls(s->dynamic, "smoothstep"));
+		CHECK(!program_calls(s->dynamic, "transform"));
+		CHECK(program_calls(s->dynamic, "diffuse"));
+		CHECK(program_calls(s->caching, "noise"));
+		CHECK(s->dynamic->ncode - s->dynamic->body_begin < p->ncode - p->body_begin);
+	}
+	struct light_set ls;
+	library_lights(&ls, 31);
+	struct tally t = { 0 };
+	compare_all_ways("marble", p, &ls, 4242, &t, true);
+	CHECK(t.maxerr <= DYN_TOL);
+	light_set_free(&ls);
+	sl_spec_destroy(s);
+	sl_program_destroy(p);
+}
+
+/* Cached value k of point @i of @x (an executor after its run) into @rec. */
+static void record_of(const struct sl_spec *s, struct sl_exec *x, uint32_t i, float *rec,
+		      const uint32_t *offset)
+{
+	const struct sl_program *p = sl_exec_program(x);
+	for (uint32_t k = 0; k < s->ncached; k++) {
+		const struct sl_reg *rg = &p->regs[s->cached[k]];
+		if (rg->type == SL_TYPE_STRING)
+			continue;
+		int tot = sl_reg_ncomp(rg) * (rg->arraylen > 0 ? rg->arraylen : 1);
+		const float *d = sl_exec_reg(x, s->cached[k]);
+		for (int c = 0; c < tot; c++)
+			rec[offset[k] + (uint32_t)c] =
+				d[rg->varying ? (size_t)c * sl_exec_stride(x) + i : (size_t)c];
+	}
+}
+
+/*
+ * Samples in any order, from different grids: the cache of two grids whose
+ * uniform values differ (du, hence branchy's `u`) is packed into records,
+ * interleaved and shuffled, and the dynamic program's result at each sample
+ * must be that sample's original result. Then the same results must come
+ * back under another order, and a comparison against the unshuffled order
+ * must fail (the check can tell samples apart).
+ */
+static void test_dynamic_any_order(void)
+{
+	struct sl_program *p = compile(shape_srcs[1]);
+	if (!p)
+		return;
+	struct light_set ls;
+	memset(&ls, 0, sizeof(ls));
+	rng_seed(9);
+	add_light(&ls, load("pointlight"), true, "pointlight");
+	add_light(&ls, load("spotlight"), true, "spotlight");
+	const char *dyn[] = { "k" };
+	struct sl_spec *s = sl_specialize(p, dyn, 1, NULL);
+	CHECK(s != NULL);
+	struct sl_exec *orig[2] = { sl_exec_create(p, NPTS), sl_exec_create(p, NPTS) };
+	struct sl_exec *ce[2] = { s ? sl_exec_create(s->caching, NPTS) : NULL,
+				  s ? sl_exec_create(s->caching, NPTS) : NULL };
+	struct sl_exec *de = s ? sl_exec_create(s->dynamic, 2 * NPTS) : NULL;
+	float *rec = NULL, *first = NULL;
+	uint32_t *offset = NULL;
+	CHECK(orig[0] && orig[1] && ce[0] && ce[1] && de);
+	if (!orig[0] || !orig[1] || !ce[0] || !ce[1] || !de)
+		goto out;
+	/* u is a uniform cached value: varying in the dynamic program */
+	int32_t ur = -1;
+	for (uint32_t r = 0; r < p->nregs; r++)
+		if (p->regs[r].name && !strcmp(p->regs[r].name, "u"))
+			ur = (int32_t)r;
+	CHECK(ur >= 0 && !p->regs[ur].varying && s->dynamic->regs[ur].varying);
+
+	struct inputs in[2];
+	float kval = 0.45f;
+	for (int gi = 0; gi < 2; gi++) {
+		rng_seed(100u + (uint32_t)gi);
+		inputs_init(&in[gi], p, gi ? 0.5f : 1.0f / (NU - 1));
+		inputs_set(&in[gi], ce[gi]);
+		CHECK(run_lit(ce[gi], NULL, 0));
+		inputs_set(&in[gi], orig[gi]);
+		CHECK(sl_exec_set_param(orig[gi], "k", &kval, 1));
+		CHECK(run_lit(orig[gi], ls.x, ls.n));
+	}
+	offset = calloc(s->ncached + 1, sizeof(uint32_t));
+	uint32_t stride = sl_spec_cache_layout(s, offset) + 2; /* two floats of padding */
+	uint32_t order[2 * NPTS];
+	shuffle(order, 2 * NPTS);
+	rec = calloc((size_t)2 * NPTS * stride, sizeof(float));
+	for (uint32_t j = 0; j < 2 * NPTS; j++)
+		record_of(s, ce[order[j] % 2], order[j] / 2, rec + (size_t)j * stride, offset);
+	first = calloc(3 * 2 * NPTS, sizeof(float));
+	int32_t ci = p->global_reg[SL_GLOBAL_CI];
+	for (int pass = 0; pass < 2; pass++) {
+		CHECK(sl_spec_bind_cache(s, de, 2 * NPTS, rec, stride, offset));
+		CHECK(sl_exec_set_param(de, "k", &kval, 1));
+		CHECK(run_lit(de, ls.x, ls.n));
+		double maxerr = 0, unshuffled = 0;
+		int moved = 0;  /* pass 1: results that differ from pass 0's for the same sample */
+		const float *d = sl_exec_reg(de, ci);
+		uint32_t ds = sl_exec_stride(de);
+		for (uint32_t j = 0; j < 2 * NPTS; j++)
+			for (int c = 0; c < 3; c++) {
+				float v = d[(size_t)c * ds + j];
+				struct sl_exec *o = orig[order[j] % 2];
+				float want = sl_exec_reg(o, ci)[(size_t)c * sl_exec_stride(o) + order[j] / 2];
+				float wrong = sl_exec_reg(orig[j % 2], ci)[(size_t)c * sl_exec_stride(o) +
+									    j / 2];
+				maxerr = fmax(maxerr, fabs((double)v - want) / fmax(1.0, fabs(want)));
+				unshuffled = fmax(unshuffled, fabs((double)v - wrong));
+				if (pass == 0)
+					first[(size_t)order[j] * 3 + (size_t)c] = v;
+				else if (first[(size_t)order[j] * 3 + (size_t)c] != v)
+					moved++;
+			}
+		CHECK(moved == 0);
+		printf("any order, pass %d: %u samples of 2 grids, max diff %.2e (tol %.0e); "
+		       "against the unshuffled order %.2e\n", pass, 2 * NPTS, maxerr, DYN_TOL,
+		       unshuffled);
+		CHECK(maxerr <= DYN_TOL);
+		CHECK(unshuffled > 1e-3);
+		/* pass 1: the same samples in another order */
+		uint32_t perm[2 * NPTS], old[2 * NPTS];
+		float *rec2 = calloc((size_t)2 * NPTS * stride, sizeof(float));
+		shuffle(perm, 2 * NPTS);
+		memcpy(old, order, sizeof(order));
+		for (uint32_t j = 0; j < 2 * NPTS; j++) {
+			order[j] = old[perm[j]];
+			memcpy(rec2 + (size_t)j * stride, rec + (size_t)perm[j] * stride,
+			       stride * sizeof(float));
+		}
+		memcpy(rec, rec2, (size_t)2 * NPTS * stride * sizeof(float));
+		free(rec2);
+	}
+	for (int gi = 0; gi < 2; gi++)
+		inputs_finish(&in[gi]);
+out:
+	free(rec);
+	free(first);
+	free(offset);
+	for (int gi = 0; gi < 2; gi++) {
+		sl_exec_destroy(orig[gi]);
+		sl_exec_destroy(ce[gi]);
+	}
+	sl_exec_destroy(de);
+	sl_spec_destroy(s);
+	light_set_free(&ls);
+	sl_program_destroy(p);
+}
+
+/* The binding functions refuse what does not fit. */
+static void test_dynamic_errors(void)
+{
+	struct sl_program *p = compile(marble);
+	if (!p)
+		return;
+	struct sl_spec *s = sl_specialize(p, NULL, 0, NULL);
+	struct sl_exec *de = s ? sl_exec_create(s->dynamic, 4) : NULL;
+	struct sl_exec *ce = s ? sl_exec_create(s->caching, 4) : NULL;
+	CHECK(de && ce);
+	if (de && ce) {
+		uint32_t stride = sl_spec_cache_layout(s, NULL);
+		float rec[4 * 64] = { 0 };
+		CHECK(stride > 0 && stride <= 64);
+		fprintf(stderr, "(four error messages expected)\n");
+		CHECK(!sl_spec_bind_cache(s, de, 5, rec, stride, NULL));      /* too many samples */
+		CHECK(!sl_spec_bind_cache(s, ce, 4, rec, stride, NULL));      /* not the dynamic executor */
+		CHECK(!sl_spec_bind_cache(s, de, 4, rec, stride - 1, NULL));  /* records too short */
+		uint32_t bad[2] = { 0, 4 };
+		CHECK(!sl_spec_copy_cache(s, de, ce, bad, 2));                /* no point 4 */
+		CHECK(sl_spec_bind_cache(s, de, 4, rec, stride, NULL));
+		CHECK(sl_spec_copy_cache(s, de, ce, NULL, 4));
+	}
+	CHECK(!sl_exec_hold(de, -1, true));
+	sl_exec_destroy(de);
+	sl_exec_destroy(ce);
+	sl_spec_destroy(s);
+	sl_program_destroy(p);
+}
+
 int main(void)
 {
 	RUN(test_marble_lights_only);
@@ -237,5 +1138,11 @@ int main(void)
 	RUN(test_dynamic_branch);
 	RUN(test_caching_values);
 	RUN(test_errors);
+	init_spaces();
+	RUN(test_dynamic_library);
+	RUN(test_dynamic_shapes);
+	RUN(test_dynamic_marble);
+	RUN(test_dynamic_any_order);
+	RUN(test_dynamic_errors);
 	return test_finish();
 }

@@ -1,0 +1,64 @@
+/*
+ * The bake (lightspeed-2007 §3.4, §4): run the reference renderer with each
+ * surface's caching program in place of the shader, keep every shading
+ * sample's cached values, record which samples make up each pixel, and
+ * write it all to a shot file (shotfile.h).
+ *
+ * What a shot file holds (SHOT_FORMAT_VERSION 1):
+ *  - one table per surface shader, "samples.NAME": a row per kept shading
+ *    sample, a channel per component of each cached value ("cKKK.CC": value
+ *    KKK of the shader's cached list, component CC, both zero-padded),
+ *    plus "object" (the primitive's id) and "lightset" (the index of the
+ *    set of lights that reach it). Rows of all tables are numbered one after
+ *    the other in table order: that number is a sample's id.
+ *  - "pixels": a table of width x height rows, channel "A" (alpha).
+ *  - "ifb", the indirect framebuffer: a deep part with, per pixel, entries
+ *    "sample" (uint id) and "weight" (float), heaviest first; the pixel's
+ *    colour is sum(weight * Ci[sample]).
+ *  - metadata (JSON): image, lights (shader, parameters, transforms), light
+ *    sets, shader groups (cached channels, dynamic parameters, source hash),
+ *    figures.
+ */
+#ifndef BAKE_H
+#define BAKE_H
+
+#include "scene.h"
+#include "reyes.h"
+#include "shotfile.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+
+struct bake_opts {
+	/* Surface parameters a user may edit (made dynamic in every surface
+	 * shader that has them). */
+	const char *const *dynamic_surface;
+	size_t ndynamic;
+	uint32_t threads;          /* 0: all cores */
+	bool progress;             /* a progress bar on stderr */
+	FILE *diag;                /* NULL: stderr */
+	struct shot_write_options write;
+};
+
+struct bake_stats {
+	double render_seconds, write_seconds;
+	uint64_t shaded_points;    /* grid points the renderer shaded */
+	uint64_t shading_samples;  /* kept: reached some pixel */
+	uint64_t subpixel_samples; /* pixels x pixel samples */
+	uint64_t raw_entries;      /* (pixel, sample) contributions before merging */
+	uint64_t indirect_entries; /* entries kept */
+	/* cached scalars per sample, summed over surface shaders; those that
+	 * vary over the frame; those among them no other channel equals */
+	uint32_t channels_dynamic, channels_varying, channels_unique;
+	uint32_t width, height;
+};
+
+/**
+ * Bake @scene's frame to the shot file @path (written atomically). False on
+ * failure, reported on opts->diag. @stats may be NULL.
+ */
+bool bake_scene(const struct reyes_scene *scene, const char *path, const struct bake_opts *opts,
+		struct bake_stats *stats);
+
+#endif

@@ -1,0 +1,374 @@
+/*
+ * The CPU resolver: for each surface shader of the shot, its shading samples
+ * in batches (one light set per batch) through the dynamic program on the
+ * interpreter; then every pixel is the weighted sum of its entries' colours.
+ */
+#include "resolve.h"
+
+#include "arena.h"
+#include "exec.h"
+#include "lighthost.h"
+#include "mathlib.h"
+#include "shotfile.h"
+#include "spec.h"
+#include "texture.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define BATCH 4096
+
+static double now(void)
+{
+	struct timespec ts;
+	clock_gettime(CLOCK_MONOTONIC, &ts);
+	return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+}
+
+struct light {
+	struct sl_program *prog;
+	struct sl_exec *x;
+	float to_camera[16];
+};
+
+struct resolver {
+	FILE *diag;
+	const char *path;
+	struct shot_file *f;
+	cJSON *meta;
+	float w2c[16];
+	struct light *lights;
+	uint32_t nlights;
+	struct reyes_texsys *tex;
+	float *Ci;                 /* 3 per sample id */
+	uint64_t nsamples;
+};
+
+static bool fail(struct resolver *r, const char *fmt, const char *a, const char *b)
+{
+	fprintf(r->diag, "relight: error: %s: ", r->path);
+	fprintf(r->diag, fmt, a ? a : "", b ? b : "");
+	fputc('\n', r->diag);
+	return false;
+}
+
+static const char *str(const cJSON *o, const char *key)
+{
+	const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+	return cJSON_IsString(v) ? v->valuestring : NULL;
+}
+
+static bool matrix(const cJSON *o, const char *key, float m[16])
+{
+	const cJSON *a = cJSON_GetObjectItemCaseSensitive(o, key);
+	if (!cJSON_IsArray(a) || cJSON_GetArraySize(a) != 16)
+		return false;
+	int i = 0;
+	const cJSON *v;
+	cJSON_ArrayForEach(v, a) {
+		if (!cJSON_IsNumber(v) || !isfinite(v->valuedouble))
+			return false;
+		m[i++] = (float)v->valuedouble;
+	}
+	return true;
+}
+
+/* The shader at @source, as compiled at bake time (same source hash). */
+static struct sl_program *load_shader(struct resolver *r, const cJSON *o)
+{
+	const char *src = str(o, "source"), *hash = str(o, "source_hash");
+	if (!src || !hash) {
+		fail(r, "a shader entry of the metadata has no source%s%s", NULL, NULL);
+		return NULL;
+	}
+	struct sl_options so = { .diag = r->diag };
+	struct sl_program *p = sl_compile_file(src, &so);
+	if (!p) {
+		fail(r, "cannot compile the shader '%s' the shot was baked with%s", src, NULL);
+		return NULL;
+	}
+	if (strcmp(sl_program_source_hash(p), hash)) {
+		fail(r, "the shader '%s' changed since the bake; bake the scene again%s", src, NULL);
+		sl_program_destroy(p);
+		return NULL;
+	}
+	return p;
+}
+
+static bool set_params(struct resolver *r, struct sl_exec *x, const cJSON *params)
+{
+	const cJSON *p;
+	cJSON_ArrayForEach(p, params) {
+		const char *name = str(p, "name"), *type = str(p, "type");
+		const cJSON *v = cJSON_GetObjectItemCaseSensitive(p, "value");
+		if (!name || !type || !cJSON_IsArray(v))
+			return fail(r, "a light parameter in the metadata is malformed%s%s", NULL,
+				    NULL);
+		int n = cJSON_GetArraySize(v);
+		if (!strcmp(type, "string")) {
+			const cJSON *s = cJSON_GetArrayItem(v, 0);
+			if (cJSON_IsString(s))
+				sl_exec_set_param_string(x, name, s->valuestring);
+			continue;
+		}
+		if (n <= 0 || n > 4096)
+			continue;
+		float vals[4096];
+		int k = 0;
+		const cJSON *e;
+		cJSON_ArrayForEach(e, v)
+			vals[k++] = cJSON_IsNumber(e) && isfinite(e->valuedouble) ? (float)e->valuedouble
+										   : 0.0f;
+		sl_exec_set_param(x, name, vals, (uint32_t)n);
+	}
+	return true;
+}
+
+static bool load_lights(struct resolver *r)
+{
+	const cJSON *ls = cJSON_GetObjectItemCaseSensitive(r->meta, "lights");
+	int n = cJSON_GetArraySize(ls);
+	r->lights = rl_xcalloc((size_t)n + 1, sizeof(*r->lights));
+	const cJSON *l;
+	cJSON_ArrayForEach(l, ls) {
+		struct light *L = &r->lights[r->nlights];
+		float s2w[16];
+		if (!matrix(l, "shader_to_world", s2w))
+			return fail(r, "a light's transform in the metadata is malformed%s%s", NULL,
+				    NULL);
+		sl_m44_mul(L->to_camera, s2w, r->w2c);
+		L->prog = load_shader(r, l);
+		if (!L->prog)
+			return false;
+		r->nlights++;
+		L->x = sl_exec_create(L->prog, BATCH);
+		if (!L->x || !set_params(r, L->x, cJSON_GetObjectItemCaseSensitive(l, "params")))
+			return false;
+	}
+	return true;
+}
+
+static bool tex_texture(void *user, const struct sl_tex_lookup *q)
+{
+	return reyes_tex_texture(((struct sl_lighthost *)user)->owner, q);
+}
+
+static bool tex_environment(void *user, const struct sl_tex_lookup *q)
+{
+	return reyes_tex_environment(((struct sl_lighthost *)user)->owner, q);
+}
+
+static bool tex_shadow(void *user, const struct sl_tex_lookup *q)
+{
+	return reyes_tex_shadow(((struct sl_lighthost *)user)->owner, q);
+}
+
+/* Shade one surface's samples. */
+static bool shade_surface(struct resolver *r, const cJSON *s)
+{
+	const char *table = str(s, "table");
+	const struct shot_table *t = table ? shot_find_table(r->f, table) : NULL;
+	const cJSON *first = cJSON_GetObjectItemCaseSensitive(s, "first_id");
+	if (!t || !cJSON_IsNumber(first) || first->valuedouble < 0 ||
+	    first->valuedouble + (double)t->nrows > (double)r->nsamples)
+		return fail(r, "the surface table '%s' is missing or does not fit%s", table, NULL);
+	uint64_t id0 = (uint64_t)first->valuedouble;
+	struct sl_program *prog = load_shader(r, s);
+	if (!prog)
+		return false;
+	const cJSON *dyn = cJSON_GetObjectItemCaseSensitive(s, "dynamic_params");
+	const char *names[256];
+	size_t nd = 0;
+	const cJSON *d;
+	cJSON_ArrayForEach(d, dyn)
+		if (cJSON_IsString(d) && nd < 256)
+			names[nd++] = d->valuestring;
+	struct sl_spec *spec = sl_specialize_ex(prog, names, nd, SL_SPEC_CACHE_PARAMS, r->diag);
+	bool ok = spec != NULL;
+	uint32_t stride = ok ? sl_spec_cache_layout(spec, NULL) : 0;
+	/* the table's channels by name: the values, then lightset (files keep
+	 * channels in name order) */
+	const float **col = rl_xcalloc(stride + 1, sizeof(float *));
+	const uint32_t *lightset = NULL;
+	uint32_t *offset = ok ? rl_xcalloc(spec->ncached + 1, sizeof(uint32_t)) : NULL;
+	if (ok)
+		sl_spec_cache_layout(spec, offset);
+	for (uint32_t c = 0; ok && c < t->nchannels; c++) {
+		const struct shot_channel *ch = &t->channels[c];
+		unsigned k, comp;
+		char tail;
+		if (!strcmp(ch->name, "lightset") && ch->type == SHOT_UINT) {
+			lightset = ch->data;
+		} else if (sscanf(ch->name, "c%3u.%2u%c", &k, &comp, &tail) == 2 &&
+			   ch->type != SHOT_UINT && k < spec->ncached) {
+			uint32_t at = offset[k] + comp;
+			uint32_t end = k + 1 < spec->ncached ? offset[k + 1] : stride;
+			if (at < end)
+				col[at] = ch->data;
+		}
+	}
+	for (uint32_t c = 0; ok && c < stride; c++)
+		ok = col[c] != NULL;
+	if (ok && !lightset)
+		ok = false;
+	free(offset);
+	if (!ok && spec)
+		fail(r, "the table '%s' does not hold what shader '%s' caches (bake again)", table,
+		     prog->name);
+	struct sl_exec *x = ok ? sl_exec_create(spec->dynamic, BATCH) : NULL;
+	ok = ok && x;
+	float *rec = rl_xmalloc(((size_t)BATCH * stride + 1) * sizeof(float));
+	uint32_t *rows = rl_xmalloc(BATCH * sizeof(uint32_t));
+	const cJSON *sets = cJSON_GetObjectItemCaseSensitive(r->meta, "lightsets");
+	int nsets = cJSON_GetArraySize(sets);
+	struct sl_exec *lx[1024];
+	float lm[1024][16];
+	for (int set = 0; ok && set < nsets; set++) {
+		/* the lights of this set */
+		int nl = 0;
+		const cJSON *li;
+		cJSON_ArrayForEach(li, cJSON_GetArrayItem(sets, set)) {
+			int k = cJSON_IsNumber(li) ? (int)li->valuedouble : -1;
+			if (k < 0 || (uint32_t)k >= r->nlights || nl >= 1024) {
+				ok = fail(r, "a light set in the metadata names no light%s%s", NULL,
+					  NULL);
+				break;
+			}
+			lx[nl] = r->lights[k].x;
+			memcpy(lm[nl], r->lights[k].to_camera, sizeof(lm[nl]));
+			nl++;
+		}
+		uint64_t row = 0;
+		while (ok && row < t->nrows) {
+			uint32_t n = 0;
+			for (; row < t->nrows && n < BATCH; row++) {
+				if (lightset[row] != (uint32_t)set)
+					continue;
+				for (uint32_t c = 0; c < stride; c++)
+					rec[(size_t)n * stride + c] = col[c][row];
+				rows[n++] = (uint32_t)row;
+			}
+			if (!n)
+				break;
+			struct sl_lighthost lh;
+			sl_lighthost_init(&lh, lx, nl);
+			lh.light_shader_mats = (const float (*)[16])lm;
+			lh.owner = r->tex;
+			lh.host.texture = tex_texture;
+			lh.host.environment = tex_environment;
+			lh.host.shadow = tex_shadow;
+			static const char *const space_names[] = { "world" };
+			lh.space_names = space_names;
+			lh.space_mats = (const float (*)[16])&r->w2c;
+			lh.nspaces = 1;
+			sl_exec_reset_params(x);
+			if (!sl_spec_bind_cache(spec, x, n, rec, stride, NULL) ||
+			    !sl_exec_run(x, &lh.host)) {
+				ok = fail(r, "shading the samples of '%s' failed%s", prog->name, NULL);
+				break;
+			}
+			bool vary;
+			const float *ci = sl_exec_global(x, SL_GLOBAL_CI, &vary);
+			uint32_t st = sl_exec_stride(x);
+			for (uint32_t i = 0; i < n; i++)
+				for (int c = 0; c < 3; c++) {
+					float v = ci ? (vary ? ci[(size_t)c * st + i] : ci[c]) : 0.0f;
+					r->Ci[(id0 + rows[i]) * 3 + (uint64_t)c] = isfinite(v) ? v : 0.0f;
+				}
+		}
+	}
+	free(rec);
+	free(rows);
+	free(col);
+	sl_exec_destroy(x);
+	sl_spec_destroy(spec);
+	sl_program_destroy(prog);
+	return ok;
+}
+
+bool resolve_cpu(const char *path, const struct resolve_opts *opts, struct resolve_result *out)
+{
+	memset(out, 0, sizeof(*out));
+	struct resolver r = { .diag = opts && opts->diag ? opts->diag : stderr, .path = path };
+	double t0 = now();
+	char err[1024] = "";
+	r.f = shot_read(path, err, sizeof(err));
+	if (!r.f) {
+		fprintf(r.diag, "relight: error: %s\n", err);
+		return false;
+	}
+	bool ok = true;
+	r.meta = cJSON_Parse(r.f->metadata ? r.f->metadata : "");
+	const struct shot_deep *ifb = shot_find_deep(r.f, "ifb");
+	const struct shot_table *pix = shot_find_table(r.f, "pixels");
+	const cJSON *wj = cJSON_GetObjectItemCaseSensitive(r.meta, "width");
+	const cJSON *hj = cJSON_GetObjectItemCaseSensitive(r.meta, "height");
+	if (!cJSON_IsObject(r.meta) || !ifb || !pix || !cJSON_IsNumber(wj) ||
+	    !cJSON_IsNumber(hj) || ifb->width != (uint32_t)wj->valuedouble ||
+	    ifb->height != (uint32_t)hj->valuedouble ||
+	    pix->nrows != (uint64_t)ifb->width * ifb->height || ifb->nchannels != 2 ||
+	    ifb->channels[0].type != SHOT_UINT || !matrix(r.meta, "world_to_camera", r.w2c))
+		ok = fail(&r, "not a shot this relight can resolve (missing or "
+			  "inconsistent parts)%s%s", NULL, NULL);
+	/* sample count: the tables' rows */
+	const cJSON *s, *surfaces = ok ? cJSON_GetObjectItemCaseSensitive(r.meta, "surfaces") : NULL;
+	cJSON_ArrayForEach(s, surfaces) {
+		const struct shot_table *t = str(s, "table") ? shot_find_table(r.f, str(s, "table"))
+							     : NULL;
+		r.nsamples += t ? t->nrows : 0;
+	}
+	if (ok) {
+		const char *tp = opts && opts->texture_path ? opts->texture_path : ".";
+		float c2w[16];
+		sl_m44_inverse(c2w, r.w2c);
+		r.tex = reyes_texsys_create(tp, c2w, r.diag);
+		r.Ci = rl_xcalloc(r.nsamples * 3 + 1, sizeof(float));
+		ok = load_lights(&r);
+	}
+	out->load_seconds = now() - t0;
+	double t1 = now();
+	if (ok)
+		cJSON_ArrayForEach(s, surfaces)
+			if (ok && !shade_surface(&r, s))
+				ok = false;
+	out->shade_seconds = now() - t1;
+
+	if (ok) {
+		double t2 = now();
+		uint32_t W = ifb->width, H = ifb->height;
+		out->width = W;
+		out->height = H;
+		out->rgba = rl_xcalloc((size_t)W * H * 4, sizeof(float));
+		const uint32_t *sid = ifb->channels[0].data;
+		const float *wt = ifb->channels[1].data;
+		const float *alpha = pix->channels[0].data;
+		for (size_t p = 0; p < (size_t)W * H; p++) {
+			double c[3] = { 0, 0, 0 };
+			for (uint64_t e = ifb->offsets[p]; e < ifb->offsets[p + 1]; e++) {
+				if (sid[e] >= r.nsamples)
+					continue;
+				for (int k = 0; k < 3; k++)
+					c[k] += (double)wt[e] * r.Ci[(size_t)sid[e] * 3 + k];
+			}
+			for (int k = 0; k < 3; k++)
+				out->rgba[p * 4 + k] = isfinite(c[k]) ? (float)c[k] : 0.0f;
+			out->rgba[p * 4 + 3] = isfinite(alpha[p]) ? alpha[p] : 0.0f;
+		}
+		out->samples = r.nsamples;
+		out->entries = ifb->offsets[(size_t)W * H];
+		out->resolve_seconds = now() - t2;
+	}
+	for (uint32_t i = 0; i < r.nlights; i++) {
+		sl_exec_destroy(r.lights[i].x);
+		sl_program_destroy(r.lights[i].prog);
+	}
+	free(r.lights);
+	free(r.Ci);
+	reyes_texsys_destroy(r.tex);
+	cJSON_Delete(r.meta);
+	shot_free(r.f);
+	return ok;
+}

@@ -1,0 +1,34 @@
+/*
+ * The CPU resolver (`relight preview --cpu`): shade a shot's samples with
+ * each surface's dynamic program on the grid interpreter, the lights run
+ * whole as in the reference renderer, and resolve the pixels through the
+ * indirect framebuffer. The ground truth of the GPU runtime.
+ */
+#ifndef BAKE_RESOLVE_H
+#define BAKE_RESOLVE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+
+struct resolve_opts {
+	FILE *diag;                /* NULL: stderr */
+	const char *texture_path;  /* where shadow maps and textures are found ("." when NULL) */
+	bool progress;             /* a progress bar on stderr */
+};
+
+struct resolve_result {
+	uint32_t width, height;
+	float *rgba;               /* width * height * 4, premultiplied linear; free() it */
+	double load_seconds, shade_seconds, resolve_seconds;
+	uint64_t samples, entries;
+};
+
+/**
+ * Shade and resolve the shot file at @path. False on failure (a clear
+ * message on opts->diag: unreadable shot, a shader that changed since the
+ * bake, ...).
+ */
+bool resolve_cpu(const char *path, const struct resolve_opts *opts, struct resolve_result *out);
+
+#endif

@@ -1,0 +1,256 @@
+/*
+ * relight bake: render a RIB scene in bake mode and write the shot file the
+ * preview reads (daemon/bake/bake.h).
+ */
+#include "cmd.h"
+#include "bake.h"
+#include "ri.h"
+#include "config.h"
+
+#include <errno.h>
+#include <getopt.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static void usage(FILE *out)
+{
+	fprintf(out,
+		"usage: relight bake [OPTIONS] SCENE.rib\n"
+		"\n"
+		"Bake a RIB scene for interactive relighting: render it with relight's REYES\n"
+		"renderer, each surface shader replaced by its caching program (the part that\n"
+		"does not depend on the lights or on editable parameters), keep every shading\n"
+		"sample's cached values and, per pixel, the weight of each sample that reaches\n"
+		"it, and write everything to one shot file (multi-part OpenEXR).\n"
+		"Shadow-pass frames (every display a depth map) are rendered as they are, so\n"
+		"that the shadow maps the lights read exist; the first other frame is baked.\n"
+		"\n"
+		"Options:\n"
+		"  -o, --output FILE        The shot file (default: SCENE.shot.exr next to the\n"
+		"                           scene, with the .rib suffix dropped)\n"
+		"  --dynamic-surface P1,... Surface parameters a user may edit in the preview\n"
+		"                           (in every surface shader that has them)\n"
+		"  --compress MODE          none (default), rle, zips or zip: how the shot's\n"
+		"                           parts are compressed (zip only for the sample\n"
+		"                           tables; the indirect framebuffer then uses zips)\n"
+		"  -t, --threads N          Render with N threads (default: all cores)\n"
+		"  -q, --quiet              No progress bar and no summary\n"
+		"  -h, --help               Show this help and exit\n"
+		"\n"
+		"Shaders are looked up along the scene's Option \"searchpath\" \"shader\", then in\n"
+		"$RELIGHT_SHADER_PATH and the standard library (%s).\n"
+		"\n"
+		"Exit status: 0 on success, 1 when the scene has errors or cannot be baked\n"
+		"(reported with the file and line), 2 on a usage error.\n",
+		RELIGHT_SOURCE_SHADER_DIR);
+}
+
+static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+static int usage_error(const char *fmt, ...)
+{
+	va_list ap;
+	va_start(ap, fmt);
+	fprintf(stderr, "relight bake: ");
+	vfprintf(stderr, fmt, ap);
+	fputc('\n', stderr);
+	va_end(ap);
+	fprintf(stderr, "\nRun 'relight bake --help' for usage.\n");
+	return CMD_USAGE;
+}
+
+struct bake_job {
+	struct bake_opts bo;
+	const char *output;
+	bool quiet;
+	int frames, baked;
+};
+
+static bool on_frame(void *user, const struct reyes_scene *scene)
+{
+	struct bake_job *j = user;
+	j->frames++;
+	if (reyes_scene_is_shadow_pass(scene)) {
+		struct reyes_render_opts ro = { .threads = j->bo.threads, .diag = stderr };
+		if (!j->quiet)
+			fprintf(stderr, "frame %d: a shadow pass, rendered\n", j->frames);
+		return reyes_render(scene, &ro, NULL);
+	}
+	if (j->baked) {
+		fprintf(stderr, "relight bake: warning: frame %d is not baked (one shot holds one "
+			"frame; frame %d was baked)\n", j->frames, j->baked);
+		return true;
+	}
+	if (!j->quiet)
+		fprintf(stderr, "frame %d: %ux%u, %u primitives, %u lights: baking\n", j->frames,
+			scene->opts.xres, scene->opts.yres, scene->nprims, scene->nlights);
+	struct bake_stats st;
+	if (!bake_scene(scene, j->output, &j->bo, &st))
+		return false;
+	j->baked = j->frames;
+	if (!j->quiet)
+		fprintf(stderr,
+			"wrote %s: %ux%u, %llu shading samples kept of %llu shaded, %llu indirect "
+			"entries for %llu subpixel samples; render %.2f s, write %.2f s\n",
+			j->output, st.width, st.height, (unsigned long long)st.shading_samples,
+			(unsigned long long)st.shaded_points,
+			(unsigned long long)st.indirect_entries,
+			(unsigned long long)st.subpixel_samples, st.render_seconds, st.write_seconds);
+	return true;
+}
+
+/* Split "a,b,c" into a NULL-terminated array (one malloc'd block). */
+static char **split_list(const char *s, size_t *n)
+{
+	size_t len = strlen(s), count = 1;
+	for (const char *p = s; *p; p++)
+		count += *p == ',';
+	char **v = malloc((count + 1) * sizeof(char *) + len + 1);
+	if (!v)
+		return NULL;
+	char *text = (char *)(v + count + 1);
+	memcpy(text, s, len + 1);
+	*n = 0;
+	for (char *tok = text, *e; tok; tok = e) {
+		e = strchr(tok, ',');
+		if (e)
+			*e++ = '\0';
+		if (*tok)
+			v[(*n)++] = tok;
+	}
+	v[*n] = NULL;
+	return v;
+}
+
+static char *default_output(const char *scene)
+{
+	size_t n = strlen(scene);
+	const char *ext = n > 4 && !strcmp(scene + n - 4, ".rib") ? scene + n - 4 :
+			  n > 7 && !strcmp(scene + n - 7, ".rib.gz") ? scene + n - 7 : scene + n;
+	size_t base = (size_t)(ext - scene);
+	char *out = malloc(base + 16);
+	if (out)
+		snprintf(out, base + 16, "%.*s.shot.exr", (int)base, scene);
+	return out;
+}
+
+int cmd_bake(int argc, char **argv)
+{
+	struct bake_job job = { 0 };
+	char **dyn = NULL;
+	char *out_alloc = NULL;
+	static const struct option long_opts[] = {
+		{ "help", no_argument, NULL, 'h' },
+		{ "output", required_argument, NULL, 'o' },
+		{ "dynamic-surface", required_argument, NULL, 'd' },
+		{ "compress", required_argument, NULL, 'c' },
+		{ "threads", required_argument, NULL, 't' },
+		{ "quiet", no_argument, NULL, 'q' },
+		{ NULL, 0, NULL, 0 },
+	};
+	optind = 1;
+	opterr = 0;
+	int opt, rc = CMD_OK;
+	while ((opt = getopt_long(argc, argv, ":ho:t:q", long_opts, NULL)) != -1) {
+		switch (opt) {
+		case 'h':
+			usage(stdout);
+			free(dyn);
+			return CMD_OK;
+		case 'o':
+			job.output = optarg;
+			break;
+		case 'd':
+			free(dyn);
+			dyn = split_list(optarg, &job.bo.ndynamic);
+			if (!dyn || !job.bo.ndynamic) {
+				free(dyn);
+				return usage_error("--dynamic-surface needs parameter names, not '%s'",
+						   optarg);
+			}
+			job.bo.dynamic_surface = (const char *const *)dyn;
+			break;
+		case 'c':
+			if (!strcmp(optarg, "none")) {
+				job.bo.write.tables = job.bo.write.deep = SHOT_COMPRESS_NONE;
+			} else if (!strcmp(optarg, "rle")) {
+				job.bo.write.tables = job.bo.write.deep = SHOT_COMPRESS_RLE;
+			} else if (!strcmp(optarg, "zips")) {
+				job.bo.write.tables = job.bo.write.deep = SHOT_COMPRESS_ZIPS;
+			} else if (!strcmp(optarg, "zip")) {
+				job.bo.write.tables = SHOT_COMPRESS_ZIP;
+				job.bo.write.deep = SHOT_COMPRESS_ZIPS;
+			} else {
+				free(dyn);
+				return usage_error("--compress needs none, rle, zips or zip, not '%s'",
+						   optarg);
+			}
+			break;
+		case 't': {
+			char *end;
+			errno = 0;
+			long v = strtol(optarg, &end, 10);
+			if (errno || end == optarg || *end || v < 1 || v > 64) {
+				free(dyn);
+				return usage_error("--threads needs a number from 1 to 64, not '%s'",
+						   optarg);
+			}
+			job.bo.threads = (uint32_t)v;
+			break;
+		}
+		case 'q':
+			job.quiet = true;
+			break;
+		case ':':
+			free(dyn);
+			return usage_error("option '%s' needs an argument", argv[optind - 1]);
+		default:
+			free(dyn);
+			return usage_error("unknown option '%s'", argv[optind - 1]);
+		}
+	}
+	if (optind >= argc || optind + 1 < argc) {
+		free(dyn);
+		return optind >= argc ? usage_error("no scene file")
+				      : usage_error("one scene file expected; extra argument '%s'",
+						    argv[optind + 1]);
+	}
+	const char *path = argv[optind];
+	if (access(path, R_OK) != 0) {
+		fprintf(stderr, "relight bake: error: cannot read '%s': %s\n", path,
+			strerror(errno));
+		free(dyn);
+		return CMD_FAILED;
+	}
+	if (!job.output)
+		job.output = out_alloc = default_output(path);
+	job.bo.progress = !job.quiet && isatty(2);
+	job.bo.diag = stderr;
+
+	char shader_path[8192];
+	const char *env = getenv("RELIGHT_SHADER_PATH");
+	snprintf(shader_path, sizeof(shader_path), "%s%s%s", env ? env : "", env && *env ? ":" : "",
+		 RELIGHT_SOURCE_SHADER_DIR);
+	struct reyes_ri_opts ri = {
+		.diag = stderr,
+		.default_shader_path = shader_path,
+		.default_texture_path = ".",
+		.frame = on_frame,
+		.user = &job,
+	};
+	int nerrors = 0;
+	bool ok = job.output && reyes_ri_read(path, &ri, &nerrors);
+	if (ok && !job.baked) {
+		fprintf(stderr, "%s: error: the scene has no frame to bake (no WorldBegin ... "
+			"WorldEnd other than shadow passes)\n", path);
+		ok = false;
+	}
+	if (!ok)
+		rc = CMD_FAILED;
+	free(dyn);
+	free(out_alloc);
+	return rc;
+}

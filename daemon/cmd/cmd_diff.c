@@ -1,0 +1,473 @@
+/*
+ * relight diff: measure how far one rendered image is from another (a
+ * preview against the final frame, a render before and after a change).
+ * Errors are reported both on the linear values and, as the paper's
+ * figures do, as a percentage of the 8-bit range of the displayed (sRGB)
+ * values; optionally as a heat map PNG.
+ */
+#include "cmd.h"
+#include "png.h"
+#include "texture.h"
+
+#include <errno.h>
+#include <getopt.h>
+#include <inttypes.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* The heat map's colour at 0, 1/5, 2/5, ... 5/5 of the scale. */
+static const uint8_t ramp[6][3] = {
+	{ 0, 0, 0 },            /* black */
+	{ 0, 0, 255 },          /* blue */
+	{ 0, 255, 0 },          /* green */
+	{ 255, 255, 0 },        /* yellow */
+	{ 255, 0, 0 },          /* red */
+	{ 255, 255, 255 },      /* white */
+};
+
+static void usage(FILE *out)
+{
+	fprintf(out,
+		"usage: relight diff [OPTIONS] A.exr B.exr\n"
+		"\n"
+		"Compare two OpenEXR images of the same size (for example a preview and the\n"
+		"final frame written by 'relight render') over their colour channels R, G, B,\n"
+		"and report:\n"
+		"  - the RMSE of the linear values;\n"
+		"  - the mean and the maximum absolute error of the displayed values, in percent\n"
+		"    of the 8-bit range: 100 |srgb(a) - srgb(b)|, where srgb() is the sRGB\n"
+		"    transfer function of the value clamped to [0, 1], taken as a continuous\n"
+		"    value (not rounded to 8 bits); colour is taken as it is (premultiplied),\n"
+		"    that is over black;\n"
+		"  - the PSNR in dB of those sRGB values (peak 1); identical images have no\n"
+		"    finite PSNR: the text says 'identical', the JSON has null;\n"
+		"  - the pixel (x, y) of the maximum error (the first in scanline order) and\n"
+		"    the number of pixels whose error, the largest over R, G, B, exceeds 1%%.\n"
+		"When both images have an alpha channel A it is compared apart, the same way\n"
+		"but with no transfer function. A NaN or infinite value in either image counts\n"
+		"as an error of the whole range (1 in linear, 100%%) and is reported.\n"
+		"\n"
+		"Options:\n"
+		"  --json               Print one JSON object instead of text, with the keys\n"
+		"                       a, b, width, height, pixels, channels, rmse, mean_pct,\n"
+		"                       max_pct, psnr_db (null when identical), max_at [x, y],\n"
+		"                       over_1pct, nonfinite [in A, in B], alpha (an object\n"
+		"                       with the same error keys, or null), heatmap (null\n"
+		"                       without --heatmap), scale_pct\n"
+		"  --heatmap OUT.png    Write the per-pixel error (the largest over R, G, B) as\n"
+		"                       an RGB PNG, through the colour ramp black, blue, green,\n"
+		"                       yellow, red, white at 0, 1/5, 2/5, 3/5, 4/5 and 5/5 of\n"
+		"                       the scale; errors beyond the scale are white\n"
+		"  --scale S            The error, in percent, at the top of the heat map's\n"
+		"                       ramp (default 5)\n"
+		"  --fail-above PCT     Exit with status 1 when the maximum error is above PCT\n"
+		"                       percent (the report is printed all the same)\n"
+		"  -h, --help           Show this help and exit\n"
+		"\n"
+		"Exit status: 0 when the images were compared (whatever their difference),\n"
+		"1 when an image cannot be read, the images differ in size or channels, the\n"
+		"heat map cannot be written or the error is above --fail-above, 2 on a usage\n"
+		"error.\n");
+}
+
+static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+static int usage_error(const char *fmt, ...)
+{
+	va_list ap;
+	va_start(ap, fmt);
+	fprintf(stderr, "relight diff: ");
+	vfprintf(stderr, fmt, ap);
+	fputc('\n', stderr);
+	va_end(ap);
+	fprintf(stderr, "\nRun 'relight diff --help' for usage.\n");
+	return CMD_USAGE;
+}
+
+static bool parse_pct(const char *s, double lo, bool lo_open, double *out)
+{
+	char *end;
+	errno = 0;
+	double v = strtod(s, &end);
+	if (errno || end == s || *end || !isfinite(v) || v > 100.0 || v < lo ||
+	    (lo_open && v == lo))
+		return false;
+	*out = v;
+	return true;
+}
+
+/* The errors over one group of channels (R, G, B; or A). */
+struct stats {
+	uint64_t samples;               /* values compared */
+	double sum_lin2;                /* sum of squared linear differences */
+	double sum_enc, sum_enc2;       /* sums of |encoded a - encoded b| and its square */
+	double max_enc;                 /* the largest per-pixel error */
+	uint32_t max_x, max_y;
+	uint64_t over_1pct;             /* pixels whose error exceeds 0.01 */
+	uint64_t nonfinite[2];          /* non-finite values in A and in B */
+};
+
+static int find_channel(const struct reyes_image *im, const char *name)
+{
+	for (uint32_t c = 0; c < im->nchannels; c++)
+		if (im->channel_names[c] && strcmp(im->channel_names[c], name) == 0)
+			return (int)c;
+	return -1;
+}
+
+static float clamp01(float v)
+{
+	return v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f;
+}
+
+/* A heat map pixel for error @e (a fraction of the range) with @scale at the ramp's top. */
+static void heat_colour(double e, double scale, uint8_t out[3])
+{
+	double t = e / scale * 5.0;
+	if (!(t > 0.0))
+		t = 0.0;
+	if (t >= 5.0)
+		t = 5.0;
+	int i = t >= 5.0 ? 4 : (int)t;
+	double f = t - i;
+	for (int c = 0; c < 3; c++)
+		out[c] = (uint8_t)lrint(ramp[i][c] + f * (ramp[i + 1][c] - ramp[i][c]));
+}
+
+/*
+ * Compare channels @ca of @a with @cb of @b (@n of them), through the sRGB
+ * transfer when @srgb. With @heat, also fill it with the heat map.
+ */
+static void measure(const struct reyes_image *a, const struct reyes_image *b, const int *ca,
+		    const int *cb, int n, bool srgb, uint8_t *heat, double scale,
+		    struct stats *s)
+{
+	memset(s, 0, sizeof(*s));
+	for (uint32_t y = 0; y < a->height; y++) {
+		for (uint32_t x = 0; x < a->width; x++) {
+			size_t px = (size_t)y * a->width + x;
+			const float *pa = a->data + px * a->nchannels;
+			const float *pb = b->data + px * b->nchannels;
+			double pixel = 0.0;
+			for (int k = 0; k < n; k++) {
+				float va = pa[ca[k]], vb = pb[cb[k]];
+				double lin, enc;
+				bool fa = isfinite(va), fb = isfinite(vb);
+				if (!fa || !fb) {
+					s->nonfinite[0] += !fa;
+					s->nonfinite[1] += !fb;
+					lin = enc = 1.0;
+				} else {
+					lin = (double)va - (double)vb;
+					enc = srgb ? fabs((double)reyes_srgb_encode(va) -
+							  (double)reyes_srgb_encode(vb))
+						   : fabs((double)clamp01(va) - (double)clamp01(vb));
+				}
+				s->sum_lin2 += lin * lin;
+				s->sum_enc += enc;
+				s->sum_enc2 += enc * enc;
+				if (enc > pixel)
+					pixel = enc;
+			}
+			s->samples += (uint64_t)n;
+			if (pixel > s->max_enc) {
+				s->max_enc = pixel;
+				s->max_x = x;
+				s->max_y = y;
+			}
+			s->over_1pct += pixel > 0.01;
+			if (heat)
+				heat_colour(pixel, scale, heat + 3 * px);
+		}
+	}
+}
+
+static double rmse(const struct stats *s)
+{
+	return s->samples ? sqrt(s->sum_lin2 / (double)s->samples) : 0.0;
+}
+
+static double mean_pct(const struct stats *s)
+{
+	return s->samples ? 100.0 * s->sum_enc / (double)s->samples : 0.0;
+}
+
+/* The PSNR in dB (peak 1), or NAN when there is no error at all. */
+static double psnr_db(const struct stats *s)
+{
+	double mse = s->samples ? s->sum_enc2 / (double)s->samples : 0.0;
+	return mse > 0.0 ? -10.0 * log10(mse) : NAN;
+}
+
+/* A JSON number; null for what JSON cannot hold. */
+static void json_number(FILE *out, double v)
+{
+	if (isfinite(v))
+		fprintf(out, "%.9g", v);
+	else
+		fputs("null", out);
+}
+
+static void json_string(FILE *out, const char *s)
+{
+	fputc('"', out);
+	for (const unsigned char *p = (const unsigned char *)s; *p; p++) {
+		if (*p == '"' || *p == '\\')
+			fprintf(out, "\\%c", *p);
+		else if (*p < 0x20)
+			fprintf(out, "\\u%04x", *p);
+		else
+			fputc(*p, out);
+	}
+	fputc('"', out);
+}
+
+static void json_stats(FILE *out, const struct stats *s)
+{
+	fputs("\"rmse\": ", out);
+	json_number(out, rmse(s));
+	fputs(", \"mean_pct\": ", out);
+	json_number(out, mean_pct(s));
+	fputs(", \"max_pct\": ", out);
+	json_number(out, 100.0 * s->max_enc);
+	fputs(", \"psnr_db\": ", out);
+	json_number(out, psnr_db(s));
+	fprintf(out, ", \"max_at\": [%" PRIu32 ", %" PRIu32 "], \"over_1pct\": %" PRIu64
+		", \"nonfinite\": [%" PRIu64 ", %" PRIu64 "]",
+		s->max_x, s->max_y, s->over_1pct, s->nonfinite[0], s->nonfinite[1]);
+}
+
+struct report {
+	const char *path_a, *path_b;
+	uint32_t width, height;
+	const char *channels[3];
+	int nchannels;
+	struct stats colour, alpha;
+	bool has_alpha;
+	const char *alpha_only;         /* the one image with an alpha channel, or NULL */
+	const char *heatmap;
+	double scale_pct;
+};
+
+static void print_json(FILE *out, const struct report *r)
+{
+	fputs("{\"a\": ", out);
+	json_string(out, r->path_a);
+	fputs(", \"b\": ", out);
+	json_string(out, r->path_b);
+	fprintf(out, ", \"width\": %" PRIu32 ", \"height\": %" PRIu32 ", \"pixels\": %" PRIu64
+		", \"channels\": [", r->width, r->height, (uint64_t)r->width * r->height);
+	for (int k = 0; k < r->nchannels; k++)
+		fprintf(out, "%s\"%s\"", k ? ", " : "", r->channels[k]);
+	fputs("], ", out);
+	json_stats(out, &r->colour);
+	fputs(", \"alpha\": ", out);
+	if (r->has_alpha) {
+		fputc('{', out);
+		json_stats(out, &r->alpha);
+		fputc('}', out);
+	} else {
+		fputs("null", out);
+	}
+	fputs(", \"heatmap\": ", out);
+	if (r->heatmap)
+		json_string(out, r->heatmap);
+	else
+		fputs("null", out);
+	fputs(", \"scale_pct\": ", out);
+	json_number(out, r->scale_pct);
+	fputs("}\n", out);
+}
+
+static void print_text(FILE *out, const struct report *r)
+{
+	const struct stats *s = &r->colour;
+	uint64_t pixels = (uint64_t)r->width * r->height;
+	fprintf(out, "%s vs %s: %" PRIu32 "x%" PRIu32 ", channels", r->path_a, r->path_b,
+		r->width, r->height);
+	for (int k = 0; k < r->nchannels; k++)
+		fprintf(out, " %s", r->channels[k]);
+	fputc('\n', out);
+	fprintf(out, "  RMSE (linear)      %.6g\n", rmse(s));
+	fprintf(out, "  mean error         %.4f %% of the 8-bit range (sRGB)\n", mean_pct(s));
+	fprintf(out, "  max error          %.4f %% at pixel (%" PRIu32 ", %" PRIu32 ")\n",
+		100.0 * s->max_enc, s->max_x, s->max_y);
+	double p = psnr_db(s);
+	if (isfinite(p))
+		fprintf(out, "  PSNR (sRGB)        %.2f dB\n", p);
+	else
+		fprintf(out, "  PSNR (sRGB)        identical\n");
+	fprintf(out, "  pixels over 1%%     %" PRIu64 " of %" PRIu64 " (%.2f %%)\n", s->over_1pct,
+		pixels, pixels ? 100.0 * (double)s->over_1pct / (double)pixels : 0.0);
+	if (s->nonfinite[0] || s->nonfinite[1])
+		fprintf(out, "  non-finite values  %" PRIu64 " in %s, %" PRIu64 " in %s "
+			"(each an error of 100 %%)\n", s->nonfinite[0], r->path_a,
+			s->nonfinite[1], r->path_b);
+	if (r->has_alpha) {
+		const struct stats *a = &r->alpha;
+		fprintf(out, "  alpha              RMSE %.6g, mean %.4f %%, max %.4f %% at (%" PRIu32
+			", %" PRIu32 "), %" PRIu64 " pixels over 1%%", rmse(a), mean_pct(a),
+			100.0 * a->max_enc, a->max_x, a->max_y, a->over_1pct);
+		if (a->nonfinite[0] || a->nonfinite[1])
+			fprintf(out, ", %" PRIu64 " + %" PRIu64 " non-finite", a->nonfinite[0],
+				a->nonfinite[1]);
+		fputc('\n', out);
+	} else if (r->alpha_only) {
+		fprintf(out, "  alpha              only in %s, not compared\n", r->alpha_only);
+	}
+	if (r->heatmap)
+		fprintf(out, "  heat map           %s (black 0, blue %.3g, green %.3g, yellow %.3g, "
+			"red %.3g, white %.3g %% and above)\n", r->heatmap, r->scale_pct * 0.2,
+			r->scale_pct * 0.4, r->scale_pct * 0.6, r->scale_pct * 0.8, r->scale_pct);
+}
+
+/* The names of @im's channels, comma-separated, for messages. */
+static void list_channels(const struct reyes_image *im, char *buf, size_t size)
+{
+	size_t len = 0;
+	buf[0] = '\0';
+	for (uint32_t c = 0; c < im->nchannels && len < size; c++)
+		len += (size_t)snprintf(buf + len, size - len, "%s%s", c ? ", " : "",
+					im->channel_names[c] ? im->channel_names[c] : "?");
+	if (im->nchannels == 0)
+		snprintf(buf, size, "none");
+}
+
+int cmd_diff(int argc, char **argv)
+{
+	bool json = false;
+	const char *heatmap = NULL;
+	double scale = 5.0, fail_above = -1.0;
+	static const struct option long_opts[] = {
+		{ "help", no_argument, NULL, 'h' },
+		{ "json", no_argument, NULL, 'j' },
+		{ "heatmap", required_argument, NULL, 'H' },
+		{ "scale", required_argument, NULL, 's' },
+		{ "fail-above", required_argument, NULL, 'f' },
+		{ NULL, 0, NULL, 0 },
+	};
+	optind = 1;
+	opterr = 0;
+	int opt;
+	while ((opt = getopt_long(argc, argv, ":h", long_opts, NULL)) != -1) {
+		switch (opt) {
+		case 'h':
+			usage(stdout);
+			return CMD_OK;
+		case 'j':
+			json = true;
+			break;
+		case 'H':
+			if (!optarg[0])
+				return usage_error("--heatmap needs a file name");
+			heatmap = optarg;
+			break;
+		case 's':
+			if (!parse_pct(optarg, 0.0, true, &scale))
+				return usage_error("--scale needs a percentage above 0 and at most "
+						   "100, not '%s'", optarg);
+			break;
+		case 'f':
+			if (!parse_pct(optarg, 0.0, false, &fail_above))
+				return usage_error("--fail-above needs a percentage from 0 to 100, "
+						   "not '%s'", optarg);
+			break;
+		case ':':
+			return usage_error("option '%s' needs an argument", argv[optind - 1]);
+		default:
+			return usage_error("unknown option '%s'", argv[optind - 1]);
+		}
+	}
+	if (argc - optind < 2)
+		return usage_error(argc - optind == 0 ? "no images to compare"
+						       : "two images expected, A.exr and B.exr");
+	if (argc - optind > 2)
+		return usage_error("two images expected; extra argument '%s'", argv[optind + 2]);
+
+	struct report r = {
+		.path_a = argv[optind],
+		.path_b = argv[optind + 1],
+		.heatmap = heatmap,
+		.scale_pct = scale,
+	};
+	struct reyes_image a, b;
+	uint8_t *heat = NULL;
+	int status = CMD_FAILED;
+	bool have_a = reyes_image_read_exr(r.path_a, &a, stderr);
+	bool have_b = reyes_image_read_exr(r.path_b, &b, stderr);
+	if (!have_a || !have_b)
+		goto done;
+	if (a.width != b.width || a.height != b.height) {
+		fprintf(stderr, "relight diff: error: the images differ in size: %s is %" PRIu32
+			"x%" PRIu32 ", %s is %" PRIu32 "x%" PRIu32 "\n", r.path_a, a.width,
+			a.height, r.path_b, b.width, b.height);
+		goto done;
+	}
+	r.width = a.width;
+	r.height = a.height;
+
+	/* The colour channels: those of R, G, B that the images have; the same in both. */
+	static const char *const rgb[3] = { "R", "G", "B" };
+	int ca[3], cb[3];
+	bool same = true;
+	for (int k = 0; k < 3; k++) {
+		int ia = find_channel(&a, rgb[k]), ib = find_channel(&b, rgb[k]);
+		same = same && (ia < 0) == (ib < 0);
+		if (ia >= 0 && ib >= 0) {
+			ca[r.nchannels] = ia;
+			cb[r.nchannels] = ib;
+			r.channels[r.nchannels++] = rgb[k];
+		}
+	}
+	if (!same || r.nchannels == 0) {
+		char la[256], lb[256];
+		list_channels(&a, la, sizeof(la));
+		list_channels(&b, lb, sizeof(lb));
+		fprintf(stderr, "relight diff: error: the images have %s colour channels "
+			"(R, G, B): %s has %s; %s has %s\n", same ? "no" : "different", r.path_a,
+			la, r.path_b, lb);
+		goto done;
+	}
+	int aa = find_channel(&a, "A"), ab = find_channel(&b, "A");
+	r.has_alpha = aa >= 0 && ab >= 0;
+	if (!r.has_alpha && (aa >= 0 || ab >= 0))
+		r.alpha_only = aa >= 0 ? r.path_a : r.path_b;
+
+	if (heatmap) {
+		heat = malloc((size_t)r.width * r.height * 3);
+		if (!heat) {
+			fprintf(stderr, "relight diff: error: out of memory for a %" PRIu32 "x%" PRIu32
+				" heat map\n", r.width, r.height);
+			goto done;
+		}
+	}
+	measure(&a, &b, ca, cb, r.nchannels, true, heat, scale / 100.0, &r.colour);
+	if (r.has_alpha)
+		measure(&a, &b, &aa, &ab, 1, false, NULL, 1.0, &r.alpha);
+
+	status = CMD_OK;
+	if (heat && !reyes_png_write(heatmap, heat, r.width, r.height, 3, stderr)) {
+		r.heatmap = NULL;
+		status = CMD_FAILED;
+	}
+	if (json)
+		print_json(stdout, &r);
+	else
+		print_text(stdout, &r);
+	double max_pct = 100.0 * r.colour.max_enc;
+	if (fail_above >= 0.0 && max_pct > fail_above) {
+		fprintf(stderr, "relight diff: the maximum error, %.4f %%, is above --fail-above "
+			"%g %%\n", max_pct, fail_above);
+		status = CMD_FAILED;
+	}
+done:
+	free(heat);
+	if (have_a)
+		reyes_image_finish(&a);
+	if (have_b)
+		reyes_image_finish(&b);
+	return status;
+}

@@ -1,0 +1,168 @@
+/*
+ * relight info: what a shot file holds — image, lights, surfaces, and the
+ * figures of lightspeed-2007's Fig. 5 and Fig. 10 (shading samples kept of
+ * those shaded, indirect entries against subpixel samples, channels, bytes).
+ */
+#include "cmd.h"
+#include "shotfile.h"
+
+#include <cjson/cJSON.h>
+#include <getopt.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void usage(FILE *out)
+{
+	fprintf(out,
+		"usage: relight info [--json] SHOT.exr\n"
+		"\n"
+		"Describe a shot file written by 'relight bake': image size, lights, surface\n"
+		"shaders, and how much the bake kept: grid points shaded and shading samples\n"
+		"kept, subpixel samples and indirect-framebuffer entries, cached channels per\n"
+		"sample (dynamic: all; varying: not constant over the frame; unique: varying\n"
+		"and equal to no other), and the bytes each part takes in the file.\n"
+		"Only headers are read; the data is not checked (the preview checks it).\n"
+		"\n"
+		"Options:\n"
+		"  --json       One JSON object with keys width, height, lights, surfaces,\n"
+		"               shaded_points, shading_samples, subpixel_samples,\n"
+		"               indirect_entries, channels {dynamic, varying, unique},\n"
+		"               bytes {PART: N}, total_bytes, format\n"
+		"  -h, --help   Show this help and exit\n"
+		"\n"
+		"Exit status: 0 on success, 1 when the file cannot be read as a shot file,\n"
+		"2 on a usage error.\n");
+}
+
+static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+static int usage_error(const char *fmt, ...)
+{
+	va_list ap;
+	va_start(ap, fmt);
+	fprintf(stderr, "relight info: ");
+	vfprintf(stderr, fmt, ap);
+	fputc('\n', stderr);
+	va_end(ap);
+	fprintf(stderr, "\nRun 'relight info --help' for usage.\n");
+	return CMD_USAGE;
+}
+
+static double num(const cJSON *o, const char *key)
+{
+	const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+	return cJSON_IsNumber(v) ? v->valuedouble : 0.0;
+}
+
+int cmd_info(int argc, char **argv)
+{
+	bool json = false;
+	static const struct option long_opts[] = {
+		{ "help", no_argument, NULL, 'h' },
+		{ "json", no_argument, NULL, 'j' },
+		{ NULL, 0, NULL, 0 },
+	};
+	optind = 1;
+	opterr = 0;
+	int opt;
+	while ((opt = getopt_long(argc, argv, ":h", long_opts, NULL)) != -1) {
+		switch (opt) {
+		case 'h':
+			usage(stdout);
+			return CMD_OK;
+		case 'j':
+			json = true;
+			break;
+		default:
+			return usage_error("unknown option '%s'", argv[optind - 1]);
+		}
+	}
+	if (optind >= argc)
+		return usage_error("no shot file");
+	if (optind + 1 < argc)
+		return usage_error("one shot file expected; extra argument '%s'", argv[optind + 1]);
+	const char *path = argv[optind];
+	char err[1024] = "";
+	struct shot_file *f = shot_read_header(path, err, sizeof(err));
+	if (!f) {
+		fprintf(stderr, "relight info: error: %s\n", err);
+		return CMD_FAILED;
+	}
+	cJSON *meta = cJSON_Parse(f->metadata ? f->metadata : "");
+	if (!cJSON_IsObject(meta)) {
+		fprintf(stderr, "relight info: error: %s: the metadata is not a JSON object\n", path);
+		cJSON_Delete(meta);
+		shot_free(f);
+		return CMD_FAILED;
+	}
+	const cJSON *fig = cJSON_GetObjectItemCaseSensitive(meta, "figures");
+	const cJSON *chn = cJSON_GetObjectItemCaseSensitive(fig, "channels");
+	cJSON *out = cJSON_CreateObject();
+	cJSON_AddNumberToObject(out, "format", num(meta, "format"));
+	cJSON_AddNumberToObject(out, "width", num(meta, "width"));
+	cJSON_AddNumberToObject(out, "height", num(meta, "height"));
+	cJSON *lights = cJSON_AddArrayToObject(out, "lights");
+	const cJSON *l;
+	cJSON_ArrayForEach(l, cJSON_GetObjectItemCaseSensitive(meta, "lights")) {
+		const cJSON *n = cJSON_GetObjectItemCaseSensitive(l, "name");
+		cJSON_AddItemToArray(lights, cJSON_CreateString(cJSON_IsString(n) ? n->valuestring
+								     : ""));
+	}
+	cJSON *surfs = cJSON_AddArrayToObject(out, "surfaces");
+	cJSON_ArrayForEach(l, cJSON_GetObjectItemCaseSensitive(meta, "surfaces")) {
+		const cJSON *n = cJSON_GetObjectItemCaseSensitive(l, "shader");
+		cJSON_AddItemToArray(surfs, cJSON_CreateString(cJSON_IsString(n) ? n->valuestring
+								    : ""));
+	}
+	static const char *const figs[] = { "shaded_points", "shading_samples",
+					    "subpixel_samples", "indirect_entries" };
+	for (size_t i = 0; i < sizeof(figs) / sizeof(figs[0]); i++)
+		cJSON_AddNumberToObject(out, figs[i], num(fig, figs[i]));
+	cJSON *c = cJSON_AddObjectToObject(out, "channels");
+	cJSON_AddNumberToObject(c, "dynamic", num(chn, "dynamic"));
+	cJSON_AddNumberToObject(c, "varying", num(chn, "varying"));
+	cJSON_AddNumberToObject(c, "unique", num(chn, "unique"));
+	cJSON *bytes = cJSON_AddObjectToObject(out, "bytes");
+	double total = 0;
+	for (uint32_t i = 0; i < f->ntables + f->ndeeps; i++) {
+		const char *name = i < f->ntables ? f->tables[i].name : f->deeps[i - f->ntables].name;
+		double b = f->part_bytes ? (double)f->part_bytes[i] : 0.0;
+		cJSON_AddNumberToObject(bytes, name, b);
+		total += b;
+	}
+	cJSON_AddNumberToObject(out, "total_bytes", total);
+
+	if (json) {
+		char *s = cJSON_Print(out);
+		if (s)
+			puts(s);
+		free(s);
+	} else {
+		double sp = num(fig, "shaded_points"), ss = num(fig, "shading_samples");
+		double sub = num(fig, "subpixel_samples"), ie = num(fig, "indirect_entries");
+		printf("%s: shot format %g, %gx%g\n", path, num(meta, "format"), num(meta, "width"),
+		       num(meta, "height"));
+		printf("lights (%d):", cJSON_GetArraySize(lights));
+		cJSON_ArrayForEach(l, lights)
+			printf(" %s", l->valuestring);
+		printf("\nsurface shaders (%d):", cJSON_GetArraySize(surfs));
+		cJSON_ArrayForEach(l, surfs)
+			printf(" %s", l->valuestring);
+		printf("\nshading samples: %.0f kept of %.0f shaded (%.2fx fewer)\n", ss, sp,
+		       ss > 0 ? sp / ss : 0.0);
+		printf("indirect entries: %.0f for %.0f subpixel samples (%.2fx fewer)\n", ie, sub,
+		       ie > 0 ? sub / ie : 0.0);
+		printf("channels per sample: %g dynamic, %g varying, %g unique\n",
+		       num(chn, "dynamic"), num(chn, "varying"), num(chn, "unique"));
+		printf("bytes: %.0f in all\n", total);
+		const cJSON *b;
+		cJSON_ArrayForEach(b, bytes)
+			printf("  %-24s %12.0f\n", b->string, b->valuedouble);
+	}
+	cJSON_Delete(out);
+	cJSON_Delete(meta);
+	shot_free(f);
+	return CMD_OK;
+}

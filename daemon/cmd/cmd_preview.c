@@ -1,0 +1,145 @@
+/*
+ * relight preview: the preview of a shot file, headless. With --cpu it
+ * shades the samples on the grid interpreter and resolves the final level
+ * (the ground truth of the GPU runtime).
+ */
+#include "cmd.h"
+#include "resolve.h"
+#include "texture.h"
+
+#include <getopt.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+static void usage(FILE *out)
+{
+	fprintf(out,
+		"usage: relight preview --cpu [--level final] [-o OUT.exr] [--json] SHOT.exr\n"
+		"\n"
+		"Relight a shot file written by 'relight bake' and write the image. With --cpu\n"
+		"every shading sample is shaded by its surface's dynamic program on relight's\n"
+		"shading-language interpreter, the lights run whole as in 'relight render',\n"
+		"and each pixel is resolved from its indirect-framebuffer entries: the CPU\n"
+		"reference that the GPU preview must match. Shadow maps and textures are\n"
+		"looked up as at bake time, relative to the current directory.\n"
+		"\n"
+		"Options:\n"
+		"  --cpu                Shade on the CPU (required: the GPU path is not built yet)\n"
+		"  --level final        The refinement level to resolve (only 'final' so far)\n"
+		"  -o, --output FILE    The image (OpenEXR, RGBA float; default: SHOT with\n"
+		"                       .shot.exr replaced by .preview.exr)\n"
+		"  --json               Print timings and counts as one JSON object\n"
+		"  -q, --quiet          No summary\n"
+		"  -h, --help           Show this help and exit\n"
+		"\n"
+		"Exit status: 0 on success, 1 when the shot cannot be read or resolved, 2 on a\n"
+		"usage error.\n");
+}
+
+static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+static int usage_error(const char *fmt, ...)
+{
+	va_list ap;
+	va_start(ap, fmt);
+	fprintf(stderr, "relight preview: ");
+	vfprintf(stderr, fmt, ap);
+	fputc('\n', stderr);
+	va_end(ap);
+	fprintf(stderr, "\nRun 'relight preview --help' for usage.\n");
+	return CMD_USAGE;
+}
+
+static char *default_output(const char *shot)
+{
+	size_t n = strlen(shot);
+	size_t base = n > 9 && !strcmp(shot + n - 9, ".shot.exr") ? n - 9 :
+		      n > 4 && !strcmp(shot + n - 4, ".exr") ? n - 4 : n;
+	char *out = malloc(base + 16);
+	if (out)
+		snprintf(out, base + 16, "%.*s.preview.exr", (int)base, shot);
+	return out;
+}
+
+int cmd_preview(int argc, char **argv)
+{
+	bool cpu = false, json = false, quiet = false;
+	const char *output = NULL;
+	static const struct option long_opts[] = {
+		{ "help", no_argument, NULL, 'h' },
+		{ "cpu", no_argument, NULL, 'c' },
+		{ "level", required_argument, NULL, 'l' },
+		{ "output", required_argument, NULL, 'o' },
+		{ "json", no_argument, NULL, 'j' },
+		{ "quiet", no_argument, NULL, 'q' },
+		{ NULL, 0, NULL, 0 },
+	};
+	optind = 1;
+	opterr = 0;
+	int opt;
+	while ((opt = getopt_long(argc, argv, ":ho:q", long_opts, NULL)) != -1) {
+		switch (opt) {
+		case 'h':
+			usage(stdout);
+			return CMD_OK;
+		case 'c':
+			cpu = true;
+			break;
+		case 'l':
+			if (strcmp(optarg, "final"))
+				return usage_error("--level: only 'final' can be resolved so far, not "
+						   "'%s'", optarg);
+			break;
+		case 'o':
+			output = optarg;
+			break;
+		case 'j':
+			json = true;
+			break;
+		case 'q':
+			quiet = true;
+			break;
+		case ':':
+			return usage_error("option '%s' needs an argument", argv[optind - 1]);
+		default:
+			return usage_error("unknown option '%s'", argv[optind - 1]);
+		}
+	}
+	if (optind >= argc)
+		return usage_error("no shot file");
+	if (optind + 1 < argc)
+		return usage_error("one shot file expected; extra argument '%s'", argv[optind + 1]);
+	if (!cpu)
+		return usage_error("only --cpu is available: the GPU preview is not built yet");
+	const char *shot = argv[optind];
+	char *out_alloc = output ? NULL : default_output(shot);
+	if (!output)
+		output = out_alloc;
+	struct resolve_opts ro = { .diag = stderr, .texture_path = "." };
+	struct resolve_result res;
+	bool ok = output && resolve_cpu(shot, &ro, &res);
+	if (ok) {
+		static const char *const names[4] = { "R", "G", "B", "A" };
+		struct reyes_image im = { .width = res.width, .height = res.height, .nchannels = 4,
+					  .channel_names = (const char **)names, .data = res.rgba };
+		ok = reyes_image_write_exr(output, &im, false, stderr);
+		if (ok && json)
+			printf("{\"width\": %u, \"height\": %u, \"samples\": %llu, \"entries\": %llu, "
+			       "\"load_ms\": %.3f, \"shade_ms\": %.3f, \"resolve_ms\": %.3f, "
+			       "\"output\": \"%s\"}\n", res.width, res.height,
+			       (unsigned long long)res.samples, (unsigned long long)res.entries,
+			       res.load_seconds * 1e3, res.shade_seconds * 1e3,
+			       res.resolve_seconds * 1e3, output);
+		else if (ok && !quiet)
+			fprintf(stderr, "wrote %s: %ux%u, %llu samples shaded in %.2f s, %llu entries "
+				"resolved in %.3f s\n", output, res.width, res.height,
+				(unsigned long long)res.samples, res.shade_seconds,
+				(unsigned long long)res.entries, res.resolve_seconds);
+		free(res.rgba);
+	}
+	free(out_alloc);
+	return ok ? CMD_OK : CMD_FAILED;
+}

@@ -1,0 +1,162 @@
+#!/usr/bin/env bash
+# `relight bake` and `relight info`: help and usage errors, a small scene baked
+# end to end (the shot file is multi-part OpenEXR that exrheader reads), its
+# figures, and bad input ending in a clear error, never a crash.
+source "$(dirname "$0")/lib.sh"
+
+run "help" "$relight" bake --help
+expect_status 0
+expect_stdout "^usage: relight bake \[OPTIONS\] SCENE.rib"
+expect_stdout "--dynamic-surface"
+
+run "info help" "$relight" info --help
+expect_status 0
+expect_stdout "^usage: relight info \[--json\] SHOT.exr"
+
+run "listed in relight --help" "$relight" --help
+expect_stdout "bake +Bake a RIB scene"
+expect_stdout "info +Describe a shot file"
+
+run "no scene" "$relight" bake
+expect_status 2
+expect_stderr "no scene file"
+
+run "bad compression" "$relight" bake --compress lzma x.rib
+expect_status 2
+expect_stderr "--compress needs none, rle, zips or zip"
+
+run "missing scene" "$relight" bake "$work/none.rib"
+expect_status 1
+expect_stderr "cannot read '$work/none.rib'"
+
+# Two spheres, one half transparent in front of the other, two lights that
+# reach different objects.
+cat >"$work/two.rib" <<'RIB'
+Format 40 30 1
+PixelSamples 8 8
+Display "two.exr" "file" "rgba"
+WorldBegin
+  LightSource "distantlight" 1
+  LightSource "pointlight" 2 "from" [0 2 2] "intensity" 4
+  AttributeBegin
+    Illuminate 2 0
+    Surface "plastic"
+    Translate 0 0 6
+    Sphere 1.5 -1.5 1.5 360
+  AttributeEnd
+  AttributeBegin
+    Surface "matte"
+    Opacity [0.5 0.5 0.5]
+    Translate 0.6 0 4
+    Sphere 0.8 -0.8 0.8 360
+  AttributeEnd
+WorldEnd
+RIB
+run "bakes" bash -c "cd '$work' && '$relight' bake two.rib"
+expect_no_crash
+expect_status 0
+expect_stderr "^wrote two.shot.exr: 40x30, [0-9]+ shading samples kept of [0-9]+ shaded"
+checks=$((checks + 1))
+[ -s "$work/two.shot.exr" ] || fail "two.shot.exr not written"
+checks=$((checks + 1))
+ls "$work"/*.tmp.* >/dev/null 2>&1 && fail "a temporary file was left behind"
+
+if command -v exrheader >/dev/null 2>&1; then
+	run "exrheader reads the shot" exrheader "$work/two.shot.exr"
+	expect_status 0
+	expect_stdout "samples.plastic"
+	expect_stdout "samples.matte"
+	expect_stdout "deepscanline"
+fi
+
+run "info --json" "$relight" info --json "$work/two.shot.exr"
+expect_status 0
+expect_no_crash
+checks=$((checks + 1))
+python3 - "$work/stdout" <<'PY' || fail "info --json figures are wrong"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["width"] == 40 and d["height"] == 30, d
+assert d["lights"] == ["1", "2"], d["lights"]
+assert sorted(d["surfaces"]) == ["matte", "plastic"], d["surfaces"]
+assert d["subpixel_samples"] == 40 * 30 * 64, d
+# every kept sample was shaded; entries are merged per pixel
+assert 0 < d["shading_samples"] <= d["shaded_points"], d
+assert 0 < d["indirect_entries"] < d["subpixel_samples"], d
+ch = d["channels"]
+assert ch["dynamic"] >= ch["varying"] >= ch["unique"] > 0, ch
+assert d["bytes"]["ifb"] > 0 and d["total_bytes"] >= sum(d["bytes"].values()) - 1, d
+PY
+
+run "info text" "$relight" info "$work/two.shot.exr"
+expect_status 0
+expect_stdout "^shading samples: [0-9]+ kept of [0-9]+ shaded"
+expect_stdout "^indirect entries: [0-9]+ for 76800 subpixel samples"
+
+# The CPU resolver against the reference renderer: within 0.1% mean and 1%
+# max of the 8-bit range (transparency, two light sets; then motion blur).
+check_resolve() {
+	run "$1: render" bash -c "cd '$work' && '$relight' render -q -o ref.exr $2"
+	expect_status 0
+	run "$1: bake" bash -c "cd '$work' && '$relight' bake -q -o r.shot.exr $2"
+	expect_status 0
+	run "$1: preview --cpu" bash -c "cd '$work' && '$relight' preview --cpu -o prev.exr r.shot.exr"
+	expect_status 0
+	expect_no_crash
+	expect_stderr "^wrote prev.exr: 40x30, [0-9]+ samples shaded"
+	run "$1: diff" "$relight" diff --json "$work/ref.exr" "$work/prev.exr"
+	expect_status 0
+	checks=$((checks + 1))
+	python3 -c '
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["mean_pct"] < 0.1 and d["max_pct"] < 1.0, d
+' "$work/stdout" || fail "preview --cpu differs from the reference"
+}
+check_resolve "transparency" two.rib
+sed -e 's/^Format 40 30 1$/Format 40 30 1\nShutter 0 1/' \
+    -e 's/^    Translate 0.6 0 4$/    MotionBegin [0 1]\n      Translate 0.6 0 4\n      Translate 1.2 0.3 4\n    MotionEnd/' \
+    "$work/two.rib" >"$work/motion.rib"
+checks=$((checks + 1))
+grep -q MotionBegin "$work/motion.rib" || fail "motion.rib has no motion"
+check_resolve "motion blur" motion.rib
+
+run "preview without --cpu" "$relight" preview "$work/r.shot.exr"
+expect_status 2
+expect_stderr "only --cpu"
+run "preview of junk" "$relight" preview --cpu "$work/two.rib"
+expect_status 1
+expect_no_crash
+
+# -o, and an unwritable output leaves no file and says why.
+run "-o" bash -c "cd '$work' && '$relight' bake -q -o other.exr two.rib"
+expect_status 0
+expect_empty_stderr
+run "unwritable output" bash -c "cd '$work' && '$relight' bake -q -o /nonexistent/dir/x.exr two.rib"
+expect_status 1
+expect_no_crash
+expect_stderr "/nonexistent/dir/x.exr"
+
+# A scene with only a shadow pass has nothing to bake.
+cat >"$work/shadowonly.rib" <<'RIB'
+Format 16 16 1
+Display "d.z" "zfile" "z"
+WorldBegin
+  Sphere 1 -1 1 360
+WorldEnd
+RIB
+run "shadow pass only" bash -c "cd '$work' && '$relight' bake -q shadowonly.rib"
+expect_status 1
+expect_stderr "no frame to bake"
+
+# Not shot files.
+run "info on a missing file" "$relight" info "$work/none.exr"
+expect_status 1
+expect_stderr "none.exr"
+printf 'not an exr' >"$work/junk.exr"
+run "info on junk" "$relight" info "$work/junk.exr"
+expect_status 1
+expect_no_crash
+expect_stderr "junk.exr"
+
+finish
