@@ -36,7 +36,6 @@
 
 #include <errno.h>
 #include <fcntl.h>
-#include <float.h>
 #include <inttypes.h>
 #include <limits.h>
 #include <math.h>
@@ -221,38 +220,32 @@ static size_t type_size(enum shot_type t)
 	return t == SHOT_HALF ? 2 : 4;
 }
 
-/* Round to nearest even; NaN becomes 0 and magnitudes beyond HALF_MAX become HALF_MAX. */
+/*
+ * Round to nearest even; NaN becomes 0 and magnitudes beyond HALF_MAX
+ * (infinities included) become HALF_MAX. Branch-free, so that loops over
+ * it vectorize: both roundings are computed and one is selected.
+ */
 static uint16_t float_to_half(float f)
 {
-	if (f != f)
-		return 0;
-	if (f > HALF_MAX)
-		f = HALF_MAX;
-	else if (f < -HALF_MAX)
-		f = -HALF_MAX;
 	uint32_t x;
 	memcpy(&x, &f, sizeof(x));
 	uint32_t sign = (x >> 16) & 0x8000u;
 	uint32_t a = x & 0x7fffffffu;
-	if (a < 0x38800000u) {
-		/* Below 2^-14: a subnormal half, in units of 2^-24. */
-		if (a < 0x33000000u)
-			return (uint16_t)sign;
-		uint32_t e = a >> 23;
-		uint32_t m = (a & 0x7fffffu) | 0x800000u;
-		uint32_t shift = 126 - e;
-		uint32_t k = m >> shift;
-		uint32_t rem = m & ((1u << shift) - 1);
-		uint32_t halfway = 1u << (shift - 1);
-		if (rem > halfway || (rem == halfway && (k & 1)))
-			k++;
-		return (uint16_t)(sign | k);
-	}
-	uint32_t h = (a >> 13) - ((127u - 15u) << 10);
-	uint32_t rem = a & 0x1fffu;
-	if (rem > 0x1000u || (rem == 0x1000u && (h & 1)))
-		h++;
-	return (uint16_t)(sign | h);
+	bool nan = a > 0x7f800000u;
+	a = a < 0x477fe000u ? a : 0x477fe000u;
+	/* Normal halves: rebias the exponent (127 to 15), round away the 13 low bits to even. */
+	uint32_t normal = (a - 0x38000000u + 0x0fffu + ((a >> 13) & 1u)) >> 13;
+	/*
+	 * Below 2^-14 the half is a multiple of 2^-24, which is the float spacing
+	 * at 0.5: adding 0.5 makes the FPU round the value to it, to even.
+	 */
+	float small;
+	memcpy(&small, &a, sizeof(small));
+	small += 0.5f;
+	uint32_t sb;
+	memcpy(&sb, &small, sizeof(sb));
+	uint32_t h = a < 0x38800000u ? sb - 0x3f000000u : normal;
+	return (uint16_t)(nan ? 0u : (sign | h));
 }
 
 /* Exact; false for infinities and NaNs, which a shot file never holds. */
@@ -272,15 +265,11 @@ static bool half_to_float(uint16_t h, float *out)
 }
 
 /* Float channels are stored as given, except NaN (0) and infinities (+-FLT_MAX). */
-static float sanitize(float v)
+static uint32_t sanitize(uint32_t x)
 {
-	if (v != v)
-		return 0.0f;
-	if (v > FLT_MAX)
-		return FLT_MAX;
-	if (v < -FLT_MAX)
-		return -FLT_MAX;
-	return v;
+	uint32_t a = x & 0x7fffffffu;
+	x = a == 0x7f800000u ? x - 1 : x;
+	return a > 0x7f800000u ? 0u : x;
 }
 
 /* Store values [first, first + n) of channel @c at @out in the file's type. */
@@ -290,15 +279,16 @@ static void store_values(const struct shot_channel *c, uint64_t first, size_t n,
 		memcpy(out, (const uint32_t *)c->data + first, n * 4);
 		return;
 	}
-	const float *src = (const float *)c->data + first;
 	if (c->type == SHOT_HALF) {
+		const float *src = (const float *)c->data + first;
 		for (size_t i = 0; i < n; i++) {
 			uint16_t h = float_to_half(src[i]);
 			memcpy(out + 2 * i, &h, 2);
 		}
 	} else {
+		const uint32_t *src = (const uint32_t *)c->data + first;
 		for (size_t i = 0; i < n; i++) {
-			float v = sanitize(src[i]);
+			uint32_t v = sanitize(src[i]);
 			memcpy(out + 4 * i, &v, 4);
 		}
 	}
@@ -663,8 +653,10 @@ struct writer {
 	int fd;
 	int write_errno;
 	struct coder cod;
-	uint8_t *raw;
+	uint8_t *raw;            /* a chunk as stored, before compression */
 	size_t raw_cap;
+	uint8_t *aside;          /* a deep line's packed counts */
+	size_t aside_cap;
 };
 
 static void on_error(exr_const_context_t ctx, exr_result_t code, const char *msg)
@@ -1008,26 +1000,23 @@ static exr_result_t write_deep(struct writer *w, exr_context_t ctx, const struct
 			int32_t cum = (int32_t)(o[x + 1] - first);
 			memcpy(counts + 4 * (size_t)x, &cum, 4);
 		}
-		/* pack() reuses its buffers: keep the packed counts aside first. */
+		/* pack() reuses its buffers: set the packed counts aside first. */
 		const uint8_t *pc;
 		size_t npc = pack(&w->cod, p->mode, counts, count_bytes, &pc);
 		if (npc == SIZE_MAX)
 			return EXR_ERR_OUT_OF_MEMORY;
-		uint8_t *counts_copy = NULL;
 		if (pc != counts) {
-			counts_copy = malloc(npc);
-			if (!counts_copy)
+			if (!grow(&w->aside, &w->aside_cap, npc))
 				return EXR_ERR_OUT_OF_MEMORY;
-			memcpy(counts_copy, pc, npc);
-			pc = counts_copy;
+			memcpy(w->aside, pc, npc);
+			pc = w->aside;
 		}
 		const uint8_t *pd;
 		size_t npd = pack(&w->cod, p->mode, w->raw, data_bytes, &pd);
-		exr_result_t rv = EXR_ERR_OUT_OF_MEMORY;
-		if (npd != SIZE_MAX)
-			rv = exr_write_deep_scanline_chunk(ctx, p->index, (int)y, npd ? pd : w->raw,
-							   npd, data_bytes, pc, npc);
-		free(counts_copy);
+		if (npd == SIZE_MAX)
+			return EXR_ERR_OUT_OF_MEMORY;
+		exr_result_t rv = exr_write_deep_scanline_chunk(ctx, p->index, (int)y, pd, npd,
+								data_bytes, pc, npc);
 		if (rv != EXR_ERR_SUCCESS)
 			return rv;
 	}
@@ -1198,6 +1187,7 @@ done:
 	free(parts);
 	free(tmp);
 	free(w.raw);
+	free(w.aside);
 	coder_finish(&w.cod);
 	return ok;
 }
@@ -1512,9 +1502,9 @@ static bool plausible(exr_compression_t c, uint64_t packed, uint64_t unpacked)
 }
 
 /* Read @n bytes at @off (inside the file) into the reader's buffer. */
-static uint8_t *fetch(struct reader *r, uint64_t off, uint64_t n, size_t extra)
+static uint8_t *fetch(struct reader *r, uint64_t off, uint64_t n)
 {
-	if (n > SIZE_MAX - extra || !grow(&r->buf, &r->buf_cap, (size_t)n + extra))
+	if (n > SIZE_MAX - 1 || !grow(&r->buf, &r->buf_cap, (size_t)n + 1))
 		return NULL;
 	if (n && !src_get(r, off, r->buf, (size_t)n))
 		return NULL;
@@ -1550,8 +1540,10 @@ static bool find_offset_tables(struct reader *r, uint32_t nparts, bool *multi, u
 	uint64_t at = 8;
 	for (uint32_t part = 0; part < nparts; part++) {
 		for (;;) {
+			if (at >= r->size)
+				return false;
 			size_t n = r->size - at < sizeof(buf) ? (size_t)(r->size - at) : sizeof(buf);
-			if (at >= r->size || !src_get(r, at, buf, n))
+			if (!src_get(r, at, buf, n))
 				return false;
 			if (buf[0] == '\0') {
 				at++;
@@ -1592,7 +1584,7 @@ static bool read_chunks(struct reader *r, struct rpart *p, bool multi, uint64_t 
 		return false;
 	}
 	p->chunks = calloc((size_t)n, sizeof(*p->chunks));
-	uint8_t *offsets = fetch(r, table, n * 8, 0);
+	uint8_t *offsets = fetch(r, table, n * 8);
 	if (!p->chunks || !offsets) {
 		fail(r, "out of memory");
 		return false;
@@ -1605,7 +1597,7 @@ static bool read_chunks(struct reader *r, struct rpart *p, bool multi, uint64_t 
 		struct chunk *c = &p->chunks[k];
 		int32_t y = k * p->lpc;
 		int32_t lines = p->height - y < p->lpc ? p->height - y : p->lpc;
-		uint64_t off = get64(r->buf + 8 * (size_t)k);
+		uint64_t off = get64(offsets + 8 * (size_t)k);
 		uint8_t lead[32];
 		if (off > r->size || leader > r->size - off) {
 			fail(r, "truncated (part '%s')", p->name);
@@ -1634,7 +1626,11 @@ static bool read_chunks(struct reader *r, struct rpart *p, bool multi, uint64_t 
 			c->unpacked = get64(q + 16);
 		} else {
 			int32_t size = (int32_t)get32(q);
-			c->packed = size < 0 ? UINT64_MAX : (uint64_t)size;
+			if (size < 0) {
+				fail(r, "corrupt chunk in part '%s' (line %d)", p->name, y);
+				return false;
+			}
+			c->packed = (uint64_t)size;
 			c->unpacked = (uint64_t)lines * line_bytes;
 		}
 		c->start = off;
@@ -1726,7 +1722,7 @@ static bool read_table_data(struct reader *r, struct rpart *p, struct shot_table
 	for (int32_t k = 0; k < p->nchunks && ok; k++) {
 		const struct chunk *c = &p->chunks[k];
 		int32_t y = k * p->lpc;
-		uint8_t *packed = fetch(r, c->data_off, c->packed, 0);
+		uint8_t *packed = fetch(r, c->data_off, c->packed);
 		if (!packed) {
 			fail(r, "cannot read part '%s': I/O error", p->name);
 			ok = false;
@@ -1786,7 +1782,7 @@ static bool read_deep_data(struct reader *r, struct rpart *p, struct shot_deep *
 	uint64_t done = 0;
 	for (uint32_t y = 0; y < d->height && ok; y++) {
 		const struct chunk *c = &p->chunks[y];
-		uint8_t *packed = fetch(r, c->counts_off, c->counts_size + c->packed, 0);
+		uint8_t *packed = fetch(r, c->counts_off, c->counts_size + c->packed);
 		if (!packed) {
 			fail(r, "cannot read part '%s': I/O error", p->name);
 			ok = false;
@@ -1995,7 +1991,7 @@ static struct shot_file *read_parts(struct reader *r, bool with_data, struct rpa
 	/* Where the chunks are: tables' bytes first, then deep parts', as in struct shot_file. */
 	bool multi = false;
 	uint64_t table = 0;
-	if (!find_offset_tables(r, nparts, &multi, &table) || multi != (nparts > 1)) {
+	if (!find_offset_tables(r, nparts, &multi, &table)) {
 		fail(r, "corrupt OpenEXR header");
 		goto bad;
 	}

@@ -105,7 +105,8 @@ struct shot_file *shot_read(const char *path, char *err, size_t errlen);
 /**
  * Read the metadata, the part names, channel lists, sizes (nrows, width,
  * height) and part_bytes, but no channel data (data and offsets stay NULL).
- * Checks the format version only.
+ * Checks the format version, the header checksum and the chunk tables,
+ * not the channel data.
  */
 struct shot_file *shot_read_header(const char *path, char *err, size_t errlen);
 
@@ -118,6 +119,26 @@ const struct shot_deep *shot_find_deep(const struct shot_file *f, const char *na
 
 /** The 64-bit content hash used for checksums (exposed for tests and content hashes). */
 uint64_t shot_hash(const void *data, size_t len, uint64_t seed);
+
+/*
+ * How values are stored. shot_write() never modifies the caller's data.
+ *  - SHOT_HALF: rounded to the nearest half, ties to even; NaN is stored as
+ *    0 and magnitudes beyond 65504 (infinities included) as +-65504, the
+ *    largest half: never as infinity.
+ *  - SHOT_FLOAT: as given, except NaN (stored as 0) and infinities (stored
+ *    as +-FLT_MAX).
+ *  - SHOT_UINT: as given.
+ * A file that holds an infinite or NaN value is refused when read.
+ *
+ * "relight.checksum" is shot_hash() (seed 0) of, for deep parts, each
+ * pixel's entry count as a little-endian uint32, then of each channel's
+ * values as stored (little-endian), channels in file order, which is sorted
+ * by name. Part 0 also carries "relight.header.checksum", the hash of the
+ * metadata and of every part's name, kind, compression, size and channel
+ * list, so that a damaged header is refused like damaged data;
+ * shot_read_header() checks it too. part_bytes counts each chunk with its
+ * leader and its entry in the chunk offset table.
+ */
 
 /**
  * shot_read() of a file held in memory (@size bytes at @data, called @name
