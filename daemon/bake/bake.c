@@ -35,6 +35,8 @@ struct group {
 	struct sl_spec *spec;
 	char *table;         /* "samples.NAME" */
 	uint32_t ncols;      /* floats per sample */
+	uint32_t *offset;    /* per cached value, its first float (sl_spec_cache_layout),
+				then ncols */
 	RL_VEC(struct chunk) chunks;
 	uint64_t rows;       /* kept rows, after compaction */
 	uint32_t first_id;   /* id of its first kept row */
@@ -68,24 +70,7 @@ static double now(void)
 	return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
 }
 
-static char *xstrdup(const char *s)
-{
-	size_t n = strlen(s) + 1;
-	char *d = rl_xmalloc(n);
-	memcpy(d, s, n);
-	return d;
-}
-
 /* ---- groups ---- */
-
-/* Floats a cached value takes in a sample's record (strings: none, see sl_spec_cache_layout). */
-static uint32_t reg_floats(const struct sl_program *p, int32_t reg)
-{
-	const struct sl_reg *r = &p->regs[reg];
-	if (r->type == SL_TYPE_STRING)
-		return 0;
-	return (uint32_t)sl_reg_ncomp(r) * (uint32_t)(r->arraylen > 0 ? r->arraylen : 1);
-}
 
 /* Is Oi computed by a light-dependent instruction? Then coverage is not static. */
 static bool opacity_dynamic(const struct sl_spec *s)
@@ -133,8 +118,9 @@ static struct group *new_group(struct bake *b, const struct reyes_shader *surf)
 	g->prog = prog;
 	g->shader = prog->name;
 	g->spec = spec;
-	for (uint32_t k = 0; k < spec->ncached; k++)
-		g->ncols += reg_floats(prog, spec->cached[k]);
+	g->offset = rl_xcalloc(spec->ncached + 1, sizeof(uint32_t));
+	g->ncols = sl_spec_cache_layout(spec, g->offset);
+	g->offset[spec->ncached] = g->ncols;
 	/* table names are unique: a second program of the same name gets a number */
 	size_t n = strlen(prog->name) + 32;
 	g->table = rl_xmalloc(n);
@@ -159,6 +145,7 @@ static void free_group(struct group *g)
 		free(g->chunks.data[i].values);
 	rl_vec_free(g->chunks);
 	sl_spec_destroy(g->spec);
+	free(g->offset);
 	free(g->table);
 	free(g);
 }
@@ -214,13 +201,12 @@ static uint32_t hook_grid(void *user, const struct reyes_shader *surf,
 	struct chunk c = { .id0 = (uint32_t)id0, .n = n, .object = prim->id, .lightset = lightset };
 	c.values = rl_xmalloc(((size_t)n * g->ncols + 1) * sizeof(float));
 	const struct sl_program *cp = sl_exec_program(x);
-	uint32_t stride = sl_exec_stride(x), col = 0;
+	uint32_t stride = sl_exec_stride(x);
 	for (uint32_t k = 0; k < g->spec->ncached; k++) {
 		int32_t reg = g->spec->cached[k];
 		const float *d = sl_exec_reg(x, reg);
-		uint32_t nf = reg_floats(cp, reg);
 		bool vary = cp->regs[reg].varying;
-		for (uint32_t f = 0; f < nf; f++, col++)
+		for (uint32_t f = 0, col = g->offset[k]; col < g->offset[k + 1]; f++, col++)
 			for (uint32_t i = 0; i < n; i++) {
 				float v = d ? (vary ? d[(size_t)f * stride + i] : d[f]) : 0.0f;
 				c.values[(size_t)i * g->ncols + col] = isfinite(v) ? v : 0.0f;
@@ -252,6 +238,12 @@ static bool hook_bucket(void *user, uint32_t x0, uint32_t y0, uint32_t x1, uint3
 }
 
 /* ---- compaction ---- */
+
+static int cmp_chunk(const void *pa, const void *pb)
+{
+	const struct chunk *a = pa, *b = pb;
+	return (a->id0 > b->id0) - (a->id0 < b->id0);
+}
 
 static int cmp_weight_desc(const void *pa, const void *pb)
 {
@@ -348,7 +340,7 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 			cJSON *c = cJSON_CreateObject();
 			cJSON_AddStringToObject(c, "name", sl_ir_reg_name(p, reg));
 			cJSON_AddStringToObject(c, "type", sl_basetype_name(p->regs[reg].type));
-			cJSON_AddNumberToObject(c, "components", reg_floats(p, reg));
+			cJSON_AddNumberToObject(c, "components", g->offset[k + 1] - g->offset[k]);
 			cJSON_AddItemToArray(ch, c);
 		}
 		cJSON_AddItemToArray(groups, j);
@@ -412,14 +404,9 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 	for (size_t gi = 0; gi < b->groups.len; gi++) {
 		struct group *g = b->groups.data[gi];
 		g->first_id = next;
-		/* chunks in id order */
-		for (size_t c = 1; c < g->chunks.len; c++) {
-			struct chunk t = g->chunks.data[c];
-			size_t j = c;
-			for (; j > 0 && g->chunks.data[j - 1].id0 > t.id0; j--)
-				g->chunks.data[j] = g->chunks.data[j - 1];
-			g->chunks.data[j] = t;
-		}
+		/* chunks in id order (threads finish grids in any order) */
+		if (g->chunks.len > 1)
+			qsort(g->chunks.data, g->chunks.len, sizeof(struct chunk), cmp_chunk);
 		for (size_t c = 0; c < g->chunks.len; c++) {
 			const struct chunk *ch = &g->chunks.data[c];
 			for (uint32_t i = 0; i < ch->n; i++)
@@ -475,22 +462,19 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 		t->nchannels = g->ncols + 2;
 		t->channels = rl_xcalloc(t->nchannels, sizeof(*t->channels));
 		uint32_t col = 0;
-		const struct sl_program *p = g->prog;
 		for (uint32_t k = 0; k < g->spec->ncached; k++) {
-			int32_t reg = g->spec->cached[k];
-			uint32_t nf = reg_floats(p, reg);
-			for (uint32_t f = 0; f < nf; f++, col++) {
+			for (uint32_t f = 0; f < g->offset[k + 1] - g->offset[k]; f++, col++) {
 				char name[64];
 				snprintf(name, sizeof(name), "c%03u.%02u", k, f);
-				t->channels[col].name = xstrdup(name);
+				t->channels[col].name = rl_xstrdup(name);
 				t->channels[col].type = SHOT_FLOAT;
 				t->channels[col].data = rl_xmalloc((g->rows + 1) * sizeof(float));
 			}
 		}
-		t->channels[col].name = xstrdup("object");
+		t->channels[col].name = rl_xstrdup("object");
 		t->channels[col].type = SHOT_UINT;
 		t->channels[col].data = rl_xmalloc((g->rows + 1) * sizeof(uint32_t));
-		t->channels[col + 1].name = xstrdup("lightset");
+		t->channels[col + 1].name = rl_xstrdup("lightset");
 		t->channels[col + 1].type = SHOT_UINT;
 		t->channels[col + 1].data = rl_xmalloc((g->rows + 1) * sizeof(uint32_t));
 		uint64_t row = 0;
@@ -533,7 +517,7 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 	pt->nrows = npix;
 	pt->nchannels = 1;
 	pt->channels = rl_xcalloc(1, sizeof(*pt->channels));
-	pt->channels[0].name = xstrdup("A");
+	pt->channels[0].name = rl_xstrdup("A");
 	pt->channels[0].type = SHOT_FLOAT;
 	pt->channels[0].data = alpha;
 

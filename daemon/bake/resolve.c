@@ -264,7 +264,6 @@ static bool shade_surface(struct resolver *r, const cJSON *s)
 			lh.space_names = space_names;
 			lh.space_mats = (const float (*)[16])&r->w2c;
 			lh.nspaces = 1;
-			sl_exec_reset_params(x);
 			if (!sl_spec_bind_cache(spec, x, n, rec, stride, NULL) ||
 			    !sl_exec_run(x, &lh.host)) {
 				ok = fail(r, "shading the samples of '%s' failed%s", prog->name, NULL);

@@ -7,12 +7,28 @@
 #ifndef CMD_H
 #define CMD_H
 
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
 /** Exit statuses shared by every subcommand. */
 enum {
 	CMD_OK = 0,
 	CMD_FAILED = 1,
 	CMD_USAGE = 2,
 };
+
+/**
+ * Print "relight CMD: MESSAGE" and a pointer to --help on stderr; returns
+ * CMD_USAGE.
+ */
+int cmd_usage_error(const char *cmd, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/** A decimal number from 0 to @max (no sign, nothing after it). */
+bool cmd_parse_uint(const char *s, uint32_t max, uint32_t *out);
+
+/** The default shader search path: $RELIGHT_SHADER_PATH, then the project's library. */
+void cmd_shader_path(char *buf, size_t size);
 
 /** `relight compile`: check an RSL shader; optionally print its AST, IR or a report. */
 int cmd_compile(int argc, char **argv);

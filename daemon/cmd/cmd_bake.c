@@ -48,19 +48,7 @@ static void usage(FILE *out)
 		RELIGHT_SOURCE_SHADER_DIR);
 }
 
-static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-
-static int usage_error(const char *fmt, ...)
-{
-	va_list ap;
-	va_start(ap, fmt);
-	fprintf(stderr, "relight bake: ");
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
-	va_end(ap);
-	fprintf(stderr, "\nRun 'relight bake --help' for usage.\n");
-	return CMD_USAGE;
-}
+#define usage_error(...) cmd_usage_error("bake", __VA_ARGS__)
 
 struct bake_job {
 	struct bake_opts bo;
@@ -189,18 +177,13 @@ int cmd_bake(int argc, char **argv)
 						   optarg);
 			}
 			break;
-		case 't': {
-			char *end;
-			errno = 0;
-			long v = strtol(optarg, &end, 10);
-			if (errno || end == optarg || *end || v < 1 || v > 64) {
+		case 't':
+			if (!cmd_parse_uint(optarg, 64, &job.bo.threads) || job.bo.threads == 0) {
 				free(dyn);
 				return usage_error("--threads needs a number from 1 to 64, not '%s'",
 						   optarg);
 			}
-			job.bo.threads = (uint32_t)v;
 			break;
-		}
 		case 'q':
 			job.quiet = true;
 			break;
@@ -231,9 +214,7 @@ int cmd_bake(int argc, char **argv)
 	job.bo.diag = stderr;
 
 	char shader_path[8192];
-	const char *env = getenv("RELIGHT_SHADER_PATH");
-	snprintf(shader_path, sizeof(shader_path), "%s%s%s", env ? env : "", env && *env ? ":" : "",
-		 RELIGHT_SOURCE_SHADER_DIR);
+	cmd_shader_path(shader_path, sizeof(shader_path));
 	struct reyes_ri_opts ri = {
 		.diag = stderr,
 		.default_shader_path = shader_path,

@@ -69,18 +69,7 @@ static void usage(FILE *out)
 		RELIGHT_SOURCE_SHADER_DIR);
 }
 
-static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-
-static int usage_error(const char *fmt, ...)
-{
-	va_list ap;
-	fprintf(stderr, "relight compile: ");
-	va_start(ap, fmt);
-	vfprintf(stderr, fmt, ap);
-	va_end(ap);
-	fprintf(stderr, "\nRun 'relight compile --help' for usage.\n");
-	return CMD_USAGE;
-}
+#define usage_error(...) cmd_usage_error("compile", __VA_ARGS__)
 
 static bool is_file(const char *path)
 {

@@ -73,19 +73,7 @@ static void usage(FILE *out)
 		"error.\n");
 }
 
-static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-
-static int usage_error(const char *fmt, ...)
-{
-	va_list ap;
-	va_start(ap, fmt);
-	fprintf(stderr, "relight diff: ");
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
-	va_end(ap);
-	fprintf(stderr, "\nRun 'relight diff --help' for usage.\n");
-	return CMD_USAGE;
-}
+#define usage_error(...) cmd_usage_error("diff", __VA_ARGS__)
 
 static bool parse_pct(const char *s, double lo, bool lo_open, double *out)
 {

@@ -36,19 +36,7 @@ static void usage(FILE *out)
 		"2 on a usage error.\n");
 }
 
-static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-
-static int usage_error(const char *fmt, ...)
-{
-	va_list ap;
-	va_start(ap, fmt);
-	fprintf(stderr, "relight info: ");
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
-	va_end(ap);
-	fprintf(stderr, "\nRun 'relight info --help' for usage.\n");
-	return CMD_USAGE;
-}
+#define usage_error(...) cmd_usage_error("info", __VA_ARGS__)
 
 static double num(const cJSON *o, const char *key)
 {

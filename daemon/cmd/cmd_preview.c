@@ -39,19 +39,7 @@ static void usage(FILE *out)
 		"usage error.\n");
 }
 
-static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-
-static int usage_error(const char *fmt, ...)
-{
-	va_list ap;
-	va_start(ap, fmt);
-	fprintf(stderr, "relight preview: ");
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
-	va_end(ap);
-	fprintf(stderr, "\nRun 'relight preview --help' for usage.\n");
-	return CMD_USAGE;
-}
+#define usage_error(...) cmd_usage_error("preview", __VA_ARGS__)
 
 static char *default_output(const char *shot)
 {

@@ -45,30 +45,7 @@ static void usage(FILE *out)
 		RELIGHT_SOURCE_SHADER_DIR);
 }
 
-static int usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
-
-static int usage_error(const char *fmt, ...)
-{
-	va_list ap;
-	va_start(ap, fmt);
-	fprintf(stderr, "relight render: ");
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
-	va_end(ap);
-	fprintf(stderr, "\nRun 'relight render --help' for usage.\n");
-	return CMD_USAGE;
-}
-
-static bool parse_uint(const char *s, uint32_t max, uint32_t *out)
-{
-	char *end;
-	errno = 0;
-	unsigned long v = strtoul(s, &end, 10);
-	if (errno || end == s || *end || s[0] == '-' || v > max)
-		return false;
-	*out = (uint32_t)v;
-	return true;
-}
+#define usage_error(...) cmd_usage_error("render", __VA_ARGS__)
 
 struct render_job {
 	struct reyes_render_opts ro;
@@ -124,12 +101,12 @@ int cmd_render(int argc, char **argv)
 			output = optarg;
 			break;
 		case 't':
-			if (!parse_uint(optarg, 64, &job.ro.threads) || job.ro.threads == 0)
+			if (!cmd_parse_uint(optarg, 64, &job.ro.threads) || job.ro.threads == 0)
 				return usage_error("--threads needs a number from 1 to 64, not '%s'",
 						   optarg);
 			break;
 		case 'b':
-			if (!parse_uint(optarg, 256, &job.ro.bucket_size) || job.ro.bucket_size < 4)
+			if (!cmd_parse_uint(optarg, 256, &job.ro.bucket_size) || job.ro.bucket_size < 4)
 				return usage_error("--bucket needs a number from 4 to 256, not '%s'",
 						   optarg);
 			break;
@@ -140,7 +117,7 @@ int cmd_render(int argc, char **argv)
 				return usage_error("--crop needs four numbers: X0 X1 Y0 Y1");
 			const char *s[4] = { optarg, argv[optind], argv[optind + 1], argv[optind + 2] };
 			for (int k = 0; k < 4; k++)
-				if (!parse_uint(s[k], 1u << 20, &v[k]))
+				if (!cmd_parse_uint(s[k], 1u << 20, &v[k]))
 					return usage_error("--crop: '%s' is not a pixel coordinate", s[k]);
 			optind += 3;
 			if (v[1] <= v[0] || v[3] <= v[2])
@@ -175,9 +152,7 @@ int cmd_render(int argc, char **argv)
 	job.ro.diag = stderr;
 
 	char shader_path[8192];
-	const char *env = getenv("RELIGHT_SHADER_PATH");
-	snprintf(shader_path, sizeof(shader_path), "%s%s%s", env ? env : "", env && *env ? ":" : "",
-		 RELIGHT_SOURCE_SHADER_DIR);
+	cmd_shader_path(shader_path, sizeof(shader_path));
 	struct reyes_ri_opts ri = {
 		.diag = stderr,
 		.default_shader_path = shader_path,

@@ -1,5 +1,6 @@
 /* Atomic writes, bounded reads, content hashes and the cache directory. */
 #include "fileutil.h"
+#include "arena.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -15,53 +16,157 @@ static void set_err(char *err, size_t errlen, const char *path, const char *what
 		snprintf(err, errlen, "%s: %s", path, what);
 }
 
+bool rl_atomic_open(struct rl_atomic *a, const char *path)
+{
+	memset(a, 0, sizeof(*a));
+	a->fd = -1;
+	size_t n = strlen(path);
+	a->path = rl_xstrdup(path);
+	a->tmp = rl_xmalloc(n + sizeof(".tmp.XXXXXX"));
+	memcpy(a->tmp, path, n);
+	memcpy(a->tmp + n, ".tmp.XXXXXX", sizeof(".tmp.XXXXXX"));
+	a->fd = mkstemp(a->tmp);
+	if (a->fd < 0) {
+		int e = errno;
+		free(a->path);
+		free(a->tmp);
+		a->path = a->tmp = NULL;
+		errno = e;
+		return false;
+	}
+	/* mkstemp makes the file private: give it the old file's mode, or the usual one */
+	struct stat st;
+	mode_t mask = umask(0);
+	umask(mask);
+	mode_t mode = stat(path, &st) == 0 && S_ISREG(st.st_mode) ? (st.st_mode & 07777)
+								   : (0666 & ~mask);
+	if (fchmod(a->fd, mode) != 0) {
+		int e = errno;
+		rl_atomic_abort(a);
+		errno = e;
+		return false;
+	}
+	return true;
+}
+
+FILE *rl_atomic_stdio(struct rl_atomic *a)
+{
+	if (!a->fp && a->fd >= 0)
+		a->fp = fdopen(a->fd, "wb");
+	return a->fp;
+}
+
+/* Flush the directory entry of @path's directory (best effort). */
+static void sync_dir(const char *path)
+{
+	const char *slash = strrchr(path, '/');
+	char *dir = NULL;
+	if (slash) {
+		size_t n = slash == path ? 1 : (size_t)(slash - path);
+		dir = malloc(n + 1);
+		if (!dir)
+			return;
+		memcpy(dir, path, n);
+		dir[n] = '\0';
+	}
+	int fd = open(dir ? dir : ".", O_RDONLY);
+	if (fd >= 0) {
+		fsync(fd);
+		close(fd);
+	}
+	free(dir);
+}
+
+/* Close the temporary file; 0 or the first errno. */
+static int close_tmp(struct rl_atomic *a, bool sync)
+{
+	int failure = 0;
+	if (a->fp) {
+		if (fflush(a->fp) != 0)
+			failure = errno ? errno : EIO;
+		if (!failure && sync && fsync(fileno(a->fp)) != 0)
+			failure = errno;
+		if (fclose(a->fp) != 0 && !failure)
+			failure = errno ? errno : EIO;
+	} else if (a->fd >= 0) {
+		if (sync && fsync(a->fd) != 0)
+			failure = errno;
+		if (close(a->fd) != 0 && !failure)
+			failure = errno;
+	}
+	a->fp = NULL;
+	a->fd = -1;
+	return failure;
+}
+
+static void release(struct rl_atomic *a)
+{
+	free(a->tmp);
+	free(a->path);
+	a->tmp = a->path = NULL;
+}
+
+bool rl_atomic_commit(struct rl_atomic *a)
+{
+	if (!a->tmp) {
+		errno = EBADF;
+		return false;
+	}
+	int failure = close_tmp(a, true);
+	if (!failure && rename(a->tmp, a->path) != 0)
+		failure = errno;
+	if (failure)
+		unlink(a->tmp);
+	else
+		sync_dir(a->path);
+	release(a);
+	errno = failure;
+	return !failure;
+}
+
+void rl_atomic_abort(struct rl_atomic *a)
+{
+	int e = errno;
+	close_tmp(a, false);
+	if (a->tmp)
+		unlink(a->tmp);
+	release(a);
+	errno = e;
+}
+
+int rl_pwrite_all(int fd, const void *data, size_t len, off_t offset)
+{
+	const char *p = data;
+	while (len > 0) {
+		size_t chunk = len > ((size_t)1 << 30) ? (size_t)1 << 30 : len;
+		ssize_t w = pwrite(fd, p, chunk, offset);
+		if (w < 0 && errno == EINTR)
+			continue;
+		if (w <= 0)
+			return w < 0 ? errno : EIO;
+		p += w;
+		len -= (size_t)w;
+		offset += w;
+	}
+	return 0;
+}
+
 bool rl_write_file_atomic(const char *path, const void *data, size_t len, char *err,
 			  size_t errlen)
 {
-	size_t n = strlen(path);
-	char *tmp = malloc(n + 16);
-	if (!tmp) {
-		set_err(err, errlen, path, "out of memory");
-		return false;
-	}
-	memcpy(tmp, path, n);
-	memcpy(tmp + n, ".tmp.XXXXXX", 12);
-	int fd = mkstemp(tmp);
-	if (fd < 0) {
+	struct rl_atomic a;
+	if (!rl_atomic_open(&a, path)) {
 		set_err(err, errlen, path, strerror(errno));
-		free(tmp);
 		return false;
 	}
-	const char *p = data;
-	size_t left = len;
-	int failure = 0;
-	while (left > 0) {
-		ssize_t w = write(fd, p, left);
-		if (w < 0 && errno == EINTR)
-			continue;
-		if (w <= 0) {
-			failure = w < 0 ? errno : EIO;
-			break;
-		}
-		p += w;
-		left -= (size_t)w;
-	}
-	/* mkstemp makes the file 0600; give it the usual permissions */
-	mode_t mask = umask(0);
-	umask(mask);
-	if (!failure && fchmod(fd, 0666 & ~mask) != 0)
-		failure = errno;
-	if (!failure && fsync(fd) != 0)
-		failure = errno;
-	if (close(fd) != 0 && !failure)
-		failure = errno;
-	if (!failure && rename(tmp, path) != 0)
-		failure = errno;
+	int failure = rl_pwrite_all(a.fd, data, len, 0);
 	if (failure) {
-		unlink(tmp);
-		set_err(err, errlen, path, strerror(failure));
+		rl_atomic_abort(&a);
+	} else if (!rl_atomic_commit(&a)) {
+		failure = errno;
 	}
-	free(tmp);
+	if (failure)
+		set_err(err, errlen, path, strerror(failure));
 	return !failure;
 }
 

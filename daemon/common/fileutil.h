@@ -10,6 +10,41 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <sys/types.h>
+
+/**
+ * A file being written atomically: open it next to its target, write through
+ * @fd (or the FILE of rl_atomic_stdio), then commit (rename over the target)
+ * or abort (the temporary goes, the old file stays).
+ */
+struct rl_atomic {
+	int fd;              /* the temporary file; -1 once closed */
+	FILE *fp;            /* set by rl_atomic_stdio, which then owns @fd */
+	char *tmp;           /* its name: PATH.tmp.XXXXXX */
+	char *path;
+};
+
+/**
+ * Create the temporary file for @path in the same directory, with the old
+ * file's mode (else 0666 minus the umask). False with errno set.
+ */
+bool rl_atomic_open(struct rl_atomic *a, const char *path);
+
+/** A stdio stream over the temporary file (NULL with errno set). */
+FILE *rl_atomic_stdio(struct rl_atomic *a);
+
+/**
+ * Flush, fsync and close the temporary file, rename it over the target and
+ * sync the directory. False with errno set; the temporary is removed either way.
+ */
+bool rl_atomic_commit(struct rl_atomic *a);
+
+/** Close and remove the temporary file (after a failed write). Accepts a closed one. */
+void rl_atomic_abort(struct rl_atomic *a);
+
+/** pwrite() all of @len bytes at @offset, retrying on EINTR: 0, or the errno. */
+int rl_pwrite_all(int fd, const void *data, size_t len, off_t offset);
 
 /**
  * Write @len bytes to @path atomically (temporary file, fsync, rename). On

@@ -15,6 +15,7 @@
  */
 #include "exr_internal.h"
 #include "mathlib.h"
+#include "fileutil.h"
 
 #include <openexr.h>
 
@@ -123,23 +124,15 @@ static int64_t write_fd(exr_const_context_t ctx, void *ud, const void *buf, uint
 			uint64_t offset, exr_stream_error_func_ptr_t error_cb)
 {
 	struct io *io = ud;
-	const uint8_t *p = buf;
-	uint64_t done = 0;
-	while (done < sz) {
-		size_t chunk = sz - done > (uint64_t)1 << 30 ? (size_t)1 << 30 : (size_t)(sz - done);
-		ssize_t k = pwrite(io->fd, p + done, chunk, (off_t)(offset + done));
-		if (k < 0 && errno == EINTR)
-			continue;
-		if (k <= 0) {
-			if (!io->write_errno)
-				io->write_errno = k < 0 ? errno : EIO;
-			if (error_cb)
-				error_cb(ctx, EXR_ERR_WRITE_IO, "write failed");
-			return -1;
-		}
-		done += (uint64_t)k;
+	int e = rl_pwrite_all(io->fd, buf, (size_t)sz, (off_t)offset);
+	if (e) {
+		if (!io->write_errno)
+			io->write_errno = e;
+		if (error_cb)
+			error_cb(ctx, EXR_ERR_WRITE_IO, "write failed");
+		return -1;
 	}
-	return (int64_t)done;
+	return (int64_t)sz;
 }
 
 static FILE *out_of(FILE *diag)
@@ -476,14 +469,11 @@ bool reyes_exr_write(const char *path, const struct reyes_image *levels, uint32_
 	int *order = calloc(nch, sizeof(int));
 	e.plane_bytes = plane_elems * 4;
 	e.planes = malloc(nch * e.plane_bytes);
-	size_t tmplen = strlen(path) + sizeof(".tmp-XXXXXX");
-	char *tmp = malloc(tmplen);
-	if (!is_half || !order || !e.planes || !tmp) {
+	if (!is_half || !order || !e.planes) {
 		fprintf(out, "%s: error: cannot write: out of memory\n", path);
 		free(is_half);
 		free(order);
 		free(e.planes);
-		free(tmp);
 		return false;
 	}
 	for (uint32_t c = 0; c < nch; c++)
@@ -492,23 +482,20 @@ bool reyes_exr_write(const char *path, const struct reyes_image *levels, uint32_
 	e.order = order;
 
 	bool ok = false;
-	snprintf(tmp, tmplen, "%s.tmp-XXXXXX", path);
-	struct io io = { .fd = mkstemp(tmp) };
-	if (io.fd < 0) {
-		fprintf(out, "%s: error: cannot write: cannot create %s: %s\n", path, tmp,
+	struct rl_atomic file;
+	if (!rl_atomic_open(&file, path)) {
+		fprintf(out, "%s: error: cannot write: cannot create a temporary file: %s\n", path,
 			strerror(errno));
 		goto done;
 	}
-	/* mkstemp() makes the file private: give it the old file's mode, or 0644. */
-	struct stat st;
-	fchmod(io.fd, stat(path, &st) == 0 ? (st.st_mode & 07777) : 0644);
+	struct io io = { .fd = file.fd };
 
 	exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
 	init.error_handler_fn = on_error;
 	init.user_data = &io;
 	init.write_fn = write_fd;
 	exr_context_t ctx = NULL;
-	exr_result_t rv = exr_start_write(&ctx, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
+	exr_result_t rv = exr_start_write(&ctx, file.tmp, EXR_WRITE_FILE_DIRECTLY, &init);
 	if (rv == EXR_ERR_SUCCESS)
 		rv = write_all(ctx, levels, nlevels, o, &e);
 	if (ctx) {
@@ -518,19 +505,11 @@ bool reyes_exr_write(const char *path, const struct reyes_image *levels, uint32_
 	}
 	if (rv != EXR_ERR_SUCCESS) {
 		fprintf(out, "%s: error: cannot write: %s\n", path, why(&io, rv));
-		close(io.fd);
-		unlink(tmp);
+		rl_atomic_abort(&file);
 		goto done;
 	}
-	if (fsync(io.fd) != 0 || close(io.fd) != 0) {
+	if (!rl_atomic_commit(&file)) {
 		fprintf(out, "%s: error: cannot write: %s\n", path, strerror(errno));
-		unlink(tmp);
-		goto done;
-	}
-	if (rename(tmp, path) != 0) {
-		fprintf(out, "%s: error: cannot write: cannot rename %s: %s\n", path, tmp,
-			strerror(errno));
-		unlink(tmp);
 		goto done;
 	}
 	if (e.nonfinite)
@@ -544,7 +523,6 @@ done:
 	free(is_half);
 	free(order);
 	free(e.planes);
-	free(tmp);
 	return ok;
 }
 

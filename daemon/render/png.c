@@ -7,6 +7,7 @@
  * And the sRGB transfer function for display values.
  */
 #include "png.h"
+#include "fileutil.h"
 
 #include <errno.h>
 #include <inttypes.h>
@@ -160,55 +161,35 @@ bool reyes_png_write(const char *path, const uint8_t *pixels, uint32_t width, ui
 		return false;
 	}
 
-	size_t tmplen = strlen(path) + sizeof(".tmp-XXXXXX");
-	char *tmp = malloc(tmplen);
 	struct writer *w = calloc(1, sizeof(*w));
-	bool ok = false;
-	if (!tmp || !w) {
+	struct rl_atomic file;
+	if (!w) {
 		fprintf(out, "%s: error: cannot write: out of memory\n", path);
-		goto done;
+		return false;
 	}
-	snprintf(tmp, tmplen, "%s.tmp-XXXXXX", path);
-	int fd = mkstemp(tmp);
-	if (fd < 0) {
-		fprintf(out, "%s: error: cannot write: cannot create %s: %s\n", path, tmp,
+	if (!rl_atomic_open(&file, path)) {
+		fprintf(out, "%s: error: cannot write: cannot create a temporary file: %s\n", path,
 			strerror(errno));
-		goto done;
+		free(w);
+		return false;
 	}
-	/* mkstemp() makes the file private: give it the old file's mode, or 0644. */
-	struct stat st;
-	fchmod(fd, stat(path, &st) == 0 ? (st.st_mode & 07777) : 0644);
-	w->f = fdopen(fd, "wb");
-	if (!w->f) {
-		fprintf(out, "%s: error: cannot write: %s\n", path, strerror(errno));
-		close(fd);
-		unlink(tmp);
-		goto done;
-	}
+	w->f = rl_atomic_stdio(&file);
+	if (!w->f)
+		w->err = errno ? errno : ENOMEM;
 	errno = 0;
-	bool written = write_png(w, pixels, width, height, nchannels);
-	if (written && fflush(w->f) != 0)
+	if (w->f)
+		write_png(w, pixels, width, height, nchannels);
+	bool ok = !w->err && !w->zmsg;
+	if (ok && !rl_atomic_commit(&file)) {
 		w->err = errno ? errno : EIO;
-	if (written && !w->err && fsync(fileno(w->f)) != 0)
-		w->err = errno;
-	if (fclose(w->f) != 0 && !w->err && !w->zmsg)
-		w->err = errno ? errno : EIO;
-	if (w->err || w->zmsg) {
+		ok = false;
+	}
+	if (!ok) {
+		rl_atomic_abort(&file);
 		fprintf(out, "%s: error: cannot write: %s\n", path,
 			w->zmsg ? w->zmsg : strerror(w->err));
-		unlink(tmp);
-		goto done;
 	}
-	if (rename(tmp, path) != 0) {
-		fprintf(out, "%s: error: cannot write: cannot rename %s: %s\n", path, tmp,
-			strerror(errno));
-		unlink(tmp);
-		goto done;
-	}
-	ok = true;
-done:
 	free(w);
-	free(tmp);
 	return ok;
 }
 

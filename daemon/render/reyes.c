@@ -967,12 +967,12 @@ static bool shade_job(struct tctx *t, struct job *job)
 			ok = false;
 			goto done;
 		}
-		memset(ci, 0, sizeof(float) * 3 * n);
 	} else {
 		get_global(sx, SL_GLOBAL_CI, ci, 3, n);
 	}
 	get_global(sx, SL_GLOBAL_OI, oi, 3, n);
-	for (uint32_t q = 0; q < r->naov; q++) {
+	/* the bake records sample ids instead of colours and AOVs */
+	for (uint32_t q = 0; !bk && q < r->naov; q++) {
 		const struct aov *av = &r->aovs[q];
 		float *dst = aovbase + (size_t)av->offset * n;
 		const struct sl_program *prog = sl_exec_program(sx);
@@ -1002,9 +1002,9 @@ static bool shade_job(struct tctx *t, struct job *job)
 	sh->hg.x[1] = moving ? x1 : x0;
 	sh->hg.y[1] = moving ? y1 : y0;
 	sh->hg.z[1] = moving ? z1 : z0;
-	sh->hg.Ci = ci;
+	sh->hg.Ci = bk ? NULL : ci;
 	sh->hg.Oi = oi;
-	sh->hg.aov = r->naov_planes ? aovp : NULL;
+	sh->hg.aov = r->naov_planes && !bk ? aovp : NULL;
 	sh->hg.smooth = a->smooth;
 	sh->hg.cull_backfacing = a->sides == 1;
 	sh->hg.flip = a->flip_normals;

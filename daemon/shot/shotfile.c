@@ -30,6 +30,7 @@
  * ~1000 times), so memory stays proportional to the file.
  */
 #include "shotfile.h"
+#include "fileutil.h"
 
 #include <openexr.h>
 #include <zlib.h>
@@ -673,23 +674,15 @@ static int64_t write_fd(exr_const_context_t ctx, void *ud, const void *buf, uint
 			uint64_t offset, exr_stream_error_func_ptr_t error_cb)
 {
 	struct writer *w = ud;
-	const uint8_t *p = buf;
-	uint64_t done = 0;
-	while (done < sz) {
-		size_t chunk = sz - done > (uint64_t)1 << 30 ? (size_t)1 << 30 : (size_t)(sz - done);
-		ssize_t k = pwrite(w->fd, p + done, chunk, (off_t)(offset + done));
-		if (k < 0 && errno == EINTR)
-			continue;
-		if (k <= 0) {
-			if (!w->write_errno)
-				w->write_errno = k < 0 ? errno : EIO;
-			if (error_cb)
-				error_cb(ctx, EXR_ERR_WRITE_IO, "write failed");
-			return -1;
-		}
-		done += (uint64_t)k;
+	int e = rl_pwrite_all(w->fd, buf, (size_t)sz, (off_t)offset);
+	if (e) {
+		if (!w->write_errno)
+			w->write_errno = e;
+		if (error_cb)
+			error_cb(ctx, EXR_ERR_WRITE_IO, "write failed");
+		return -1;
 	}
-	return (int64_t)done;
+	return (int64_t)sz;
 }
 
 /* Check one part's channels and put them in file (name) order into @p. */
@@ -1053,26 +1046,6 @@ static exr_result_t write_parts(struct writer *w, exr_context_t ctx, const struc
 	return rv;
 }
 
-/* Flush the directory entry of @path's directory (best effort). */
-static void sync_dir(const char *path)
-{
-	const char *slash = strrchr(path, '/');
-	char *dir = slash ? malloc((size_t)(slash - path) + 2) : NULL;
-	if (slash && !dir)
-		return;
-	if (dir) {
-		size_t n = slash == path ? 1 : (size_t)(slash - path);
-		memcpy(dir, path, n);
-		dir[n] = '\0';
-	}
-	int fd = open(dir ? dir : ".", O_RDONLY);
-	if (fd >= 0) {
-		fsync(fd);
-		close(fd);
-	}
-	free(dir);
-}
-
 bool shot_write(const char *path, const struct shot_file *f, const struct shot_write_options *opts,
 		char *err, size_t errlen)
 {
@@ -1100,9 +1073,8 @@ bool shot_write(const char *path, const struct shot_file *f, const struct shot_w
 	struct writer w = { .path = path, .err = err, .errlen = errlen, .fd = -1 };
 	w.libmsg_ptr = w.libmsg;
 	struct wpart *parts = calloc(nparts, sizeof(*parts));
-	char *tmp = malloc(strlen(path) + sizeof(".tmp.XXXXXX"));
 	bool ok = false;
-	if (!parts || !tmp) {
+	if (!parts) {
 		say(err, errlen, "%s: cannot write: out of memory", path);
 		goto done;
 	}
@@ -1127,24 +1099,20 @@ bool shot_write(const char *path, const struct shot_file *f, const struct shot_w
 	hash_str(&hs, f->metadata);
 	uint64_t header_sum = hasher_final(&hs);
 
-	size_t tmplen = strlen(path) + sizeof(".tmp.XXXXXX");
-	snprintf(tmp, tmplen, "%s.tmp.XXXXXX", path);
-	w.fd = mkstemp(tmp);
-	if (w.fd < 0) {
+	struct rl_atomic file;
+	if (!rl_atomic_open(&file, path)) {
 		say(err, errlen, "%s: cannot write: cannot create a temporary file: %s", path,
 		    strerror(errno));
 		goto done;
 	}
-	/* mkstemp() makes the file private: give it the old file's mode, or 0644. */
-	struct stat st;
-	fchmod(w.fd, stat(path, &st) == 0 && S_ISREG(st.st_mode) ? (st.st_mode & 0777) : 0644);
+	w.fd = file.fd;
 
 	exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
 	init.error_handler_fn = on_error;
 	init.user_data = &w;
 	init.write_fn = write_fd;
 	exr_context_t ctx = NULL;
-	exr_result_t rv = exr_start_write(&ctx, tmp, EXR_WRITE_FILE_DIRECTLY, &init);
+	exr_result_t rv = exr_start_write(&ctx, file.tmp, EXR_WRITE_FILE_DIRECTLY, &init);
 	if (rv == EXR_ERR_SUCCESS)
 		rv = write_parts(&w, ctx, f, parts, nparts, header_sum);
 	if (ctx) {
@@ -1157,35 +1125,19 @@ bool shot_write(const char *path, const struct shot_file *f, const struct shot_w
 		    w.write_errno ? strerror(w.write_errno)
 		    : w.libmsg[0] ? w.libmsg
 				  : exr_get_default_error_message(rv));
-		close(w.fd);
-		unlink(tmp);
+		rl_atomic_abort(&file);
 		goto done;
 	}
-	if (fsync(w.fd) != 0) {
+	if (!rl_atomic_commit(&file)) {
 		say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
-		close(w.fd);
-		unlink(tmp);
 		goto done;
 	}
-	if (close(w.fd) != 0) {
-		say(err, errlen, "%s: cannot write: %s", path, strerror(errno));
-		unlink(tmp);
-		goto done;
-	}
-	if (rename(tmp, path) != 0) {
-		say(err, errlen, "%s: cannot write: cannot rename the temporary file over it: %s", path,
-		    strerror(errno));
-		unlink(tmp);
-		goto done;
-	}
-	sync_dir(path);
 	ok = true;
 done:
 	if (parts)
 		for (uint32_t i = 0; i < nparts; i++)
 			free(parts[i].ch);
 	free(parts);
-	free(tmp);
 	free(w.raw);
 	free(w.aside);
 	coder_finish(&w.cod);
