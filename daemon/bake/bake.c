@@ -40,6 +40,7 @@ struct group {
 	RL_VEC(struct chunk) chunks;
 	uint64_t rows;       /* kept rows, after compaction */
 	uint32_t first_id;   /* id of its first kept row */
+	cJSON *compress;     /* constants, aliases, half error (for the metadata) */
 };
 
 /* One finished bucket, copied. */
@@ -61,6 +62,7 @@ struct bake {
 	RL_VEC(const struct reyes_attrs *) lightsets;
 	uint64_t next_id;
 	bool failed;
+	cJSON *tiles_json;   /* the layout's tiles (for the metadata) */
 };
 
 static double now(void)
@@ -145,6 +147,7 @@ static void free_group(struct group *g)
 		free(g->chunks.data[i].values);
 	rl_vec_free(g->chunks);
 	sl_spec_destroy(g->spec);
+	cJSON_Delete(g->compress);
 	free(g->offset);
 	free(g->table);
 	free(g);
@@ -343,11 +346,33 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 			cJSON_AddNumberToObject(c, "components", g->offset[k + 1] - g->offset[k]);
 			cJSON_AddItemToArray(ch, c);
 		}
+		if (g->compress) {
+			cJSON_AddItemToObject(j, "channels", g->compress);
+			((struct group *)g)->compress = NULL;
+		}
 		cJSON_AddItemToArray(groups, j);
+	}
+	cJSON *levels = cJSON_AddArrayToObject(root, "levels");
+	static const char *const level_table[BAKE_LEVELS] = { "level0", "level1", "level2", "ifb" };
+	static const int block[BAKE_LEVELS] = { 4, 2, 1, 1 };
+	for (int L = 0; L < BAKE_LEVELS; L++) {
+		cJSON *l = cJSON_CreateObject();
+		cJSON_AddStringToObject(l, "part", level_table[L]);
+		cJSON_AddNumberToObject(l, "block", block[L]);
+		cJSON_AddNumberToObject(l, "entries", (double)st->level_entries[L]);
+		cJSON_AddNumberToObject(l, "samples", (double)st->level_samples[L]);
+		cJSON_AddItemToArray(levels, l);
+	}
+	cJSON *tl = cJSON_AddObjectToObject(root, "tiling");
+	cJSON_AddNumberToObject(tl, "tile_size", st->tile_size);
+	if (b->tiles_json) {
+		cJSON_AddItemToObject(tl, "tiles", b->tiles_json);
+		((struct bake *)b)->tiles_json = NULL;
 	}
 	cJSON *fig = cJSON_AddObjectToObject(root, "figures");
 	cJSON_AddNumberToObject(fig, "shaded_points", (double)st->shaded_points);
 	cJSON_AddNumberToObject(fig, "shading_samples", (double)st->shading_samples);
+	cJSON_AddNumberToObject(fig, "sample_rows", (double)st->sample_rows);
 	cJSON_AddNumberToObject(fig, "subpixel_samples", (double)st->subpixel_samples);
 	cJSON_AddNumberToObject(fig, "raw_entries", (double)st->raw_entries);
 	cJSON_AddNumberToObject(fig, "indirect_entries", (double)st->indirect_entries);
@@ -356,6 +381,9 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 	cJSON_AddNumberToObject(chn, "dynamic", st->channels_dynamic);
 	cJSON_AddNumberToObject(chn, "varying", st->channels_varying);
 	cJSON_AddNumberToObject(chn, "unique", st->channels_unique);
+	cJSON_AddNumberToObject(chn, "half", st->channels_half);
+	cJSON_AddNumberToObject(chn, "float", st->channels_float);
+	cJSON_AddNumberToObject(fig, "tiles", st->tiles);
 	char *text = cJSON_PrintUnformatted(root);
 	cJSON_Delete(root);
 	return text;
@@ -363,185 +391,586 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 
 /* ---- the shot ---- */
 
+/* Per pixel its entries (original sample ids), heaviest first. */
+struct ifb {
+	uint32_t W, H;
+	uint64_t *offsets;   /* W * H + 1 */
+	uint32_t *id;
+	float *w;
+	float *alpha;        /* per pixel */
+};
+
+/* A coarse refinement level: one entry per block x block pixels. */
+struct level {
+	uint32_t block, nx, ny;
+	uint32_t *id;        /* nx * ny; UINT32_MAX: an empty block */
+	float *w;
+};
+
+static const uint32_t level_block[BAKE_LEVELS - 1] = { 4, 2, 1 };
+
+static void gather_ifb(const struct bake *b, const uint8_t *ok_id, struct ifb *f)
+{
+	size_t npix = (size_t)f->W * f->H;
+	f->offsets = rl_xcalloc(npix + 1, sizeof(uint64_t));
+	f->alpha = rl_xcalloc(npix + 1, sizeof(float));
+	uint64_t nid = b->next_id;
+	for (int pass = 0; pass < 2; pass++) {
+		if (pass == 1) {
+			for (size_t p = 0; p < npix; p++)
+				f->offsets[p + 1] += f->offsets[p];
+			f->id = rl_xmalloc((f->offsets[npix] + 1) * sizeof(uint32_t));
+			f->w = rl_xmalloc((f->offsets[npix] + 1) * sizeof(float));
+		}
+		struct reyes_vis_entry *scratch = NULL;
+		size_t scap = 0;
+		for (size_t k = 0; k < b->buckets.len; k++) {
+			const struct bucket *bk = &b->buckets.data[k];
+			uint32_t w = bk->x1 - bk->x0;
+			for (uint32_t y = bk->y0; y < bk->y1; y++)
+				for (uint32_t x = bk->x0; x < bk->x1; x++) {
+					size_t lp = (size_t)(y - bk->y0) * w + (x - bk->x0);
+					size_t gp = (size_t)y * f->W + x;
+					size_t n = 0, need = bk->offsets[lp + 1] - bk->offsets[lp];
+					if (need > scap) {
+						scap = need * 2;
+						scratch = rl_xrealloc(scratch, scap * sizeof(*scratch));
+					}
+					for (uint32_t e = bk->offsets[lp]; e < bk->offsets[lp + 1]; e++) {
+						const struct reyes_vis_entry *en = &bk->entries[e];
+						if (en->id < nid && ok_id[en->id] && en->weight > 0.0f &&
+						    isfinite(en->weight))
+							scratch[n++] = *en;
+					}
+					if (pass == 0) {
+						f->offsets[gp + 1] = n;
+						f->alpha[gp] = isfinite(bk->alpha[lp]) ? bk->alpha[lp]
+										       : 0.0f;
+						continue;
+					}
+					if (n > 1)
+						qsort(scratch, n, sizeof(*scratch), cmp_weight_desc);
+					for (size_t e = 0; e < n; e++) {
+						f->id[f->offsets[gp] + e] = scratch[e].id;
+						f->w[f->offsets[gp] + e] = scratch[e].weight;
+					}
+				}
+		}
+		free(scratch);
+	}
+}
+
+/*
+ * Level @lv (block size set): per block, the sample that carries the most
+ * weight over the block's pixels, weighted by the block's mean coverage, so
+ * that brightness holds at every level (lightspeed §5.2).
+ */
+static void make_level(const struct ifb *f, struct level *lv)
+{
+	uint32_t B = lv->block;
+	lv->nx = (f->W + B - 1) / B;
+	lv->ny = (f->H + B - 1) / B;
+	size_t nb = (size_t)lv->nx * lv->ny;
+	lv->id = rl_xmalloc((nb + 1) * sizeof(uint32_t));
+	lv->w = rl_xmalloc((nb + 1) * sizeof(float));
+	uint32_t *sid = NULL;
+	double *sw = NULL;
+	size_t cap = 0;
+	for (uint32_t by = 0; by < lv->ny; by++)
+		for (uint32_t bx = 0; bx < lv->nx; bx++) {
+			size_t n = 0;
+			double total = 0.0;
+			uint32_t npix = 0;
+			for (uint32_t y = by * B; y < by * B + B && y < f->H; y++)
+				for (uint32_t x = bx * B; x < bx * B + B && x < f->W; x++) {
+					size_t p = (size_t)y * f->W + x;
+					npix++;
+					for (uint64_t e = f->offsets[p]; e < f->offsets[p + 1]; e++) {
+						total += f->w[e];
+						size_t k = 0;
+						while (k < n && sid[k] != f->id[e])
+							k++;
+						if (k == n) {
+							if (n == cap) {
+								cap = cap ? cap * 2 : 64;
+								sid = rl_xrealloc(sid, cap * sizeof(*sid));
+								sw = rl_xrealloc(sw, cap * sizeof(*sw));
+							}
+							sid[n] = f->id[e];
+							sw[n++] = 0.0;
+						}
+						sw[k] += f->w[e];
+					}
+				}
+			size_t best = 0;
+			for (size_t k = 1; k < n; k++)
+				if (sw[k] > sw[best] || (sw[k] == sw[best] && sid[k] < sid[best]))
+					best = k;
+			size_t b = (size_t)by * lv->nx + bx;
+			lv->id[b] = n ? sid[best] : UINT32_MAX;
+			lv->w[b] = n ? (float)(total / npix) : 0.0f;
+		}
+	free(sid);
+	free(sw);
+}
+
+/* Tiles of @T x @T pixels (@T a multiple of 4; 0: the whole frame). */
+struct tiling {
+	uint32_t T, nx, ny;
+};
+
+static struct tiling tiling_of(uint32_t W, uint32_t H, uint32_t T)
+{
+	struct tiling t = { T, 1, 1 };
+	if (T) {
+		t.nx = (W + T - 1) / T;
+		t.ny = (H + T - 1) / T;
+	}
+	return t;
+}
+
+static void tile_rect(const struct tiling *t, uint32_t W, uint32_t H, uint32_t k, uint32_t r[4])
+{
+	if (!t->T) {
+		r[0] = r[1] = 0;
+		r[2] = W;
+		r[3] = H;
+		return;
+	}
+	r[0] = (k % t->nx) * t->T;
+	r[1] = (k / t->nx) * t->T;
+	r[2] = r[0] + t->T < W ? r[0] + t->T : W;
+	r[3] = r[1] + t->T < H ? r[1] + t->T : H;
+}
+
+/* What the layout needs to know of every original sample id. */
+struct idinfo {
+	uint32_t *group;     /* group index; UINT32_MAX: no group */
+	uint32_t *chunk;     /* index into its group's chunks */
+	uint8_t *level;      /* scratch: first level a tile uses it at (255: unused) */
+	uint32_t *map;       /* scratch: new id within the tile being laid out */
+};
+
+/*
+ * The samples tile @k uses, as sorted keys (group << 40 | level << 32 | id):
+ * the order of their rows. Returns the count; *bytes: what the tile takes.
+ */
+static size_t tile_keys(const struct bake *b, const struct ifb *f, const struct level *lv,
+			const struct tiling *t, uint32_t k, struct idinfo *ii, uint64_t **keys,
+			size_t *cap, uint64_t *bytes)
+{
+	uint32_t r[4];
+	tile_rect(t, f->W, f->H, k, r);
+	size_t n = 0;
+	uint64_t entries = 0;
+#define TOUCH(ID, L) do { \
+		uint32_t id_ = (ID); \
+		if (ii->level[id_] == 255) { \
+			if (n == *cap) { \
+				*cap = *cap ? *cap * 2 : 1024; \
+				*keys = rl_xrealloc(*keys, *cap * sizeof(**keys)); \
+			} \
+			(*keys)[n++] = id_; \
+		} \
+		if ((L) < ii->level[id_]) \
+			ii->level[id_] = (uint8_t)(L); \
+	} while (0)
+	for (int L = 0; L < BAKE_LEVELS - 1; L++) {
+		const struct level *l = &lv[L];
+		for (uint32_t by = r[1] / l->block; by * l->block < r[3]; by++)
+			for (uint32_t bx = r[0] / l->block; bx * l->block < r[2]; bx++) {
+				uint32_t id = l->id[(size_t)by * l->nx + bx];
+				entries++;
+				if (id != UINT32_MAX)
+					TOUCH(id, L);
+			}
+	}
+	for (uint32_t y = r[1]; y < r[3]; y++)
+		for (uint32_t x = r[0]; x < r[2]; x++) {
+			size_t p = (size_t)y * f->W + x;
+			entries += f->offsets[p + 1] - f->offsets[p];
+			for (uint64_t e = f->offsets[p]; e < f->offsets[p + 1]; e++)
+				TOUCH(f->id[e], BAKE_LEVELS - 1);
+		}
+#undef TOUCH
+	uint64_t by = entries * 8 + (uint64_t)(r[2] - r[0]) * (r[3] - r[1]) * 12;
+	for (size_t i = 0; i < n; i++) {
+		uint32_t id = (uint32_t)(*keys)[i];
+		uint32_t g = ii->group[id];
+		by += (uint64_t)(b->groups.data[g]->ncols + 2) * 4;
+		(*keys)[i] = (uint64_t)g << 40 | (uint64_t)ii->level[id] << 32 | id;
+		ii->level[id] = 255;
+	}
+	*bytes = by;
+	return n;
+}
+
+static int cmp_u64(const void *pa, const void *pb)
+{
+	uint64_t a = *(const uint64_t *)pa, b = *(const uint64_t *)pb;
+	return (a > b) - (a < b);
+}
+
+/* The largest tile's bytes when tiled by @t. */
+static uint64_t max_tile_bytes(const struct bake *b, const struct ifb *f, const struct level *lv,
+			       const struct tiling *t, struct idinfo *ii)
+{
+	uint64_t *keys = NULL, worst = 0;
+	size_t cap = 0;
+	for (uint32_t k = 0; k < t->nx * t->ny; k++) {
+		uint64_t by;
+		tile_keys(b, f, lv, t, k, ii, &keys, &cap, &by);
+		if (by > worst)
+			worst = by;
+	}
+	free(keys);
+	return worst;
+}
+
+/* Is @v exactly a half? */
+static bool half_exact(float v)
+{
+	if (v == 0.0f)
+		return true;
+	float a = fabsf(v);
+	if (!(a <= 65504.0f) || a < 0x1p-24f)
+		return false;
+	int e;
+	frexpf(a, &e);
+	float s = ldexpf(a, e - 1 >= -14 ? 11 - e : 24);
+	return s == floorf(s);
+}
+
+/* @v rounded to the nearest half (|v| <= 65504). */
+static float half_round(float v)
+{
+	float a = fabsf(v);
+	if (a < 0x1p-25f)
+		return 0.0f;
+	int e;
+	frexpf(a, &e);
+	int q = e - 1 >= -14 ? 11 - e : 24;
+	float r = ldexpf(nearbyintf(ldexpf(a, q)), -q);
+	return v < 0.0f ? -r : r;
+}
+
+/*
+ * How a channel of a cached value of type @type is stored: points and
+ * plain floats as half only when every value is one exactly (ids, flags,
+ * 0.5); colours, normals and vectors as half when they fit its range (their
+ * error, at most 2^-11 relative, is measured and reported).
+ */
+static bool store_as_half(enum sl_basetype type, const float *v, uint64_t n, double *max_rel)
+{
+	bool lossy = type == SL_TYPE_COLOR || type == SL_TYPE_NORMAL || type == SL_TYPE_VECTOR;
+	double worst = 0.0;
+	for (uint64_t r = 0; r < n; r++) {
+		if (half_exact(v[r]))
+			continue;
+		if (!lossy || !(fabsf(v[r]) <= 65504.0f))
+			return false;
+		float h = half_round(v[r]);
+		double rel = fabs((double)h - v[r]) / fmax(fabs((double)v[r]), 1e-30);
+		if (fabsf(v[r]) >= 0x1p-14f && rel > worst)
+			worst = rel;
+	}
+	if (worst > *max_rel)
+		*max_rel = worst;
+	return true;
+}
+
 static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 {
 	const struct reyes_options *so = &b->scene->opts;
 	uint32_t W = so->xres, H = so->yres;
 	size_t npix = (size_t)W * H;
 	uint64_t nid = b->next_id;
+	bool ok = true;
 
-	/* Which ids a pixel uses, and each pixel's entry count. */
-	uint8_t *used = rl_xcalloc(nid + 1, 1);
-	uint64_t *offsets = rl_xcalloc(npix + 1, sizeof(uint64_t));
-	float *alpha = rl_xcalloc(npix + 1, sizeof(float));
-	for (size_t k = 0; k < b->buckets.len; k++) {
-		const struct bucket *bk = &b->buckets.data[k];
-		uint32_t w = bk->x1 - bk->x0;
-		for (uint32_t y = bk->y0; y < bk->y1; y++)
-			for (uint32_t x = bk->x0; x < bk->x1; x++) {
-				size_t lp = (size_t)(y - bk->y0) * w + (x - bk->x0);
-				size_t gp = (size_t)y * W + x;
-				uint32_t cnt = 0;
-				for (uint32_t e = bk->offsets[lp]; e < bk->offsets[lp + 1]; e++) {
-					const struct reyes_vis_entry *en = &bk->entries[e];
-					if (en->id < nid && en->weight > 0.0f &&
-					    isfinite(en->weight)) {
-						used[en->id] = 1;
-						cnt++;
-					}
-				}
-				offsets[gp + 1] = cnt;
-				alpha[gp] = isfinite(bk->alpha[lp]) ? bk->alpha[lp] : 0.0f;
-			}
-	}
-	for (size_t p = 0; p < npix; p++)
-		offsets[p + 1] += offsets[p];
-	uint64_t nentries = offsets[npix];
-
-	/* New ids: kept samples, shader by shader, in id order within each. */
-	uint32_t *newid = rl_xmalloc((nid + 1) * sizeof(uint32_t));
-	uint32_t next = 0;
+	/* Every id's group and chunk. */
+	struct idinfo ii;
+	ii.group = rl_xmalloc((nid + 1) * sizeof(uint32_t));
+	ii.chunk = rl_xmalloc((nid + 1) * sizeof(uint32_t));
+	ii.level = rl_xmalloc(nid + 1);
+	ii.map = rl_xmalloc((nid + 1) * sizeof(uint32_t));
+	memset(ii.level, 255, nid + 1);
+	uint8_t *ok_id = rl_xcalloc(nid + 1, 1);
+	for (uint64_t i = 0; i < nid; i++)
+		ii.group[i] = UINT32_MAX;
 	for (size_t gi = 0; gi < b->groups.len; gi++) {
 		struct group *g = b->groups.data[gi];
-		g->first_id = next;
-		/* chunks in id order (threads finish grids in any order) */
 		if (g->chunks.len > 1)
 			qsort(g->chunks.data, g->chunks.len, sizeof(struct chunk), cmp_chunk);
 		for (size_t c = 0; c < g->chunks.len; c++) {
 			const struct chunk *ch = &g->chunks.data[c];
-			for (uint32_t i = 0; i < ch->n; i++)
-				if (used[ch->id0 + i])
-					newid[ch->id0 + i] = next++;
-		}
-		g->rows = next - g->first_id;
-	}
-
-	/* The indirect framebuffer. */
-	uint32_t *ent_id = rl_xmalloc((nentries + 1) * sizeof(uint32_t));
-	float *ent_w = rl_xmalloc((nentries + 1) * sizeof(float));
-	struct reyes_vis_entry *scratch = NULL;
-	size_t scap = 0;
-	for (size_t k = 0; k < b->buckets.len; k++) {
-		const struct bucket *bk = &b->buckets.data[k];
-		uint32_t w = bk->x1 - bk->x0;
-		for (uint32_t y = bk->y0; y < bk->y1; y++)
-			for (uint32_t x = bk->x0; x < bk->x1; x++) {
-				size_t lp = (size_t)(y - bk->y0) * w + (x - bk->x0);
-				size_t gp = (size_t)y * W + x;
-				size_t n = 0, need = bk->offsets[lp + 1] - bk->offsets[lp];
-				if (need > scap) {
-					scap = need * 2;
-					scratch = rl_xrealloc(scratch, scap * sizeof(*scratch));
-				}
-				for (uint32_t e = bk->offsets[lp]; e < bk->offsets[lp + 1]; e++) {
-					struct reyes_vis_entry en = bk->entries[e];
-					if (en.id < nid && en.weight > 0.0f && isfinite(en.weight)) {
-						en.id = newid[en.id];
-						scratch[n++] = en;
-					}
-				}
-				if (n > 1)
-					qsort(scratch, n, sizeof(*scratch), cmp_weight_desc);
-				for (size_t e = 0; e < n; e++) {
-					ent_id[offsets[gp] + e] = scratch[e].id;
-					ent_w[offsets[gp] + e] = scratch[e].weight;
-				}
-			}
-	}
-	free(scratch);
-
-	/* Sample tables. */
-	size_t ntab = b->groups.len + 1;
-	struct shot_table *tabs = rl_xcalloc(ntab, sizeof(*tabs));
-	bool ok = true;
-	for (size_t gi = 0; gi < b->groups.len; gi++) {
-		struct group *g = b->groups.data[gi];
-		struct shot_table *t = &tabs[gi];
-		t->name = g->table;
-		t->nrows = g->rows;
-		t->nchannels = g->ncols + 2;
-		t->channels = rl_xcalloc(t->nchannels, sizeof(*t->channels));
-		uint32_t col = 0;
-		for (uint32_t k = 0; k < g->spec->ncached; k++) {
-			for (uint32_t f = 0; f < g->offset[k + 1] - g->offset[k]; f++, col++) {
-				char name[64];
-				snprintf(name, sizeof(name), "c%03u.%02u", k, f);
-				t->channels[col].name = rl_xstrdup(name);
-				t->channels[col].type = SHOT_FLOAT;
-				t->channels[col].data = rl_xmalloc((g->rows + 1) * sizeof(float));
-			}
-		}
-		t->channels[col].name = rl_xstrdup("object");
-		t->channels[col].type = SHOT_UINT;
-		t->channels[col].data = rl_xmalloc((g->rows + 1) * sizeof(uint32_t));
-		t->channels[col + 1].name = rl_xstrdup("lightset");
-		t->channels[col + 1].type = SHOT_UINT;
-		t->channels[col + 1].data = rl_xmalloc((g->rows + 1) * sizeof(uint32_t));
-		uint64_t row = 0;
-		for (size_t c = 0; c < g->chunks.len; c++) {
-			const struct chunk *ch = &g->chunks.data[c];
 			for (uint32_t i = 0; i < ch->n; i++) {
-				if (!used[ch->id0 + i])
-					continue;
-				for (uint32_t f = 0; f < g->ncols; f++)
-					((float *)t->channels[f].data)[row] =
-						ch->values[(size_t)i * g->ncols + f];
-				((uint32_t *)t->channels[col].data)[row] = ch->object;
-				((uint32_t *)t->channels[col + 1].data)[row] = ch->lightset;
-				row++;
+				ii.group[ch->id0 + i] = (uint32_t)gi;
+				ii.chunk[ch->id0 + i] = (uint32_t)c;
+				ok_id[ch->id0 + i] = 1;
 			}
 		}
 	}
-	/* Channel figures (lightspeed Fig. 5): cached scalars per shader, those
-	 * that vary over the frame, and those among them no other equals. */
-	for (size_t gi = 0; gi < b->groups.len; gi++) {
-		const struct group *g = b->groups.data[gi];
-		const struct shot_table *t = &tabs[gi];
-		st->channels_dynamic += g->ncols;
-		for (uint32_t c = 0; c < g->ncols; c++) {
-			const float *v = t->channels[c].data;
-			bool varies = false;
-			for (uint64_t r = 1; r < t->nrows && !varies; r++)
-				varies = v[r] != v[0];
-			if (!varies)
-				continue;
-			st->channels_varying++;
-			bool alias = false;
-			for (uint32_t d = 0; d < c && !alias; d++)
-				alias = !memcmp(v, t->channels[d].data, t->nrows * sizeof(float));
-			st->channels_unique += !alias;
-		}
+
+	/* The indirect framebuffer and the coarse levels, in original ids. */
+	struct ifb f = { .W = W, .H = H };
+	gather_ifb(b, ok_id, &f);
+	free(ok_id);
+	struct level lv[BAKE_LEVELS - 1];
+	for (int L = 0; L < BAKE_LEVELS - 1; L++) {
+		lv[L].block = level_block[L];
+		make_level(&f, &lv[L]);
 	}
-	struct shot_table *pt = &tabs[b->groups.len];
+
+	/* Tiles: the whole frame if it fits the budget, else the largest square
+	 * tiles (a multiple of 4 pixels, so blocks never straddle two) that do. */
+	uint64_t budget = b->o->tile_budget ? b->o->tile_budget : BAKE_DEFAULT_TILE_BUDGET;
+	struct tiling t = tiling_of(W, H, 0);
+	uint64_t worst = max_tile_bytes(b, &f, lv, &t, &ii);
+	for (uint32_t T = 1024; worst > budget && T >= 16; T /= 2) {
+		if (T >= W && T >= H)
+			continue;
+		t = tiling_of(W, H, T);
+		worst = max_tile_bytes(b, &f, lv, &t, &ii);
+	}
+	if (worst > budget)
+		fprintf(b->diag, "relight: warning: a tile of %u x %u pixels still takes %.1f MB, "
+			"more than the tile budget of %.1f MB\n", t.T, t.T, (double)worst / 1e6,
+			(double)budget / 1e6);
+	uint32_t ntiles = t.nx * t.ny;
+
+	/* Rows: tile by tile; within a tile, surface by surface; within a
+	 * surface, level by level (a level's samples are a prefix); then in
+	 * id order (the renderer's order). A sample several tiles use has a
+	 * row in each. */
+	size_t ng = b->groups.len;
+	uint64_t *counts = rl_xcalloc((size_t)ntiles * ng * BAKE_LEVELS + 1, sizeof(uint64_t));
+	RL_VEC(uint64_t) rows = { 0 };
+	uint64_t *tile_first = rl_xcalloc((size_t)ntiles + 1, sizeof(uint64_t));
+	{
+		uint64_t *keys = NULL;
+		size_t cap = 0;
+		for (uint32_t k = 0; k < ntiles; k++) {
+			uint64_t by;
+			size_t n = tile_keys(b, &f, lv, &t, k, &ii, &keys, &cap, &by);
+			qsort(keys, n, sizeof(*keys), cmp_u64);
+			tile_first[k] = rows.len;
+			for (size_t i = 0; i < n; i++) {
+				rl_vec_push(rows, keys[i]);
+				uint32_t g = (uint32_t)(keys[i] >> 40);
+				uint32_t L = (uint32_t)(keys[i] >> 32) & 255;
+				counts[((size_t)k * ng + g) * BAKE_LEVELS + L]++;
+			}
+		}
+		tile_first[ntiles] = rows.len;
+		free(keys);
+	}
+	uint64_t total_rows = rows.len;
+	if (total_rows >= UINT32_MAX) {
+		fprintf(b->diag, "relight: error: more than %u shading samples after tiling; use "
+			"a larger --tile-budget or a coarser ShadingRate\n", UINT32_MAX - 1);
+		ok = false;
+	}
+	/* group sizes and first ids */
+	uint64_t *gfill = rl_xcalloc(ng + 1, sizeof(uint64_t));
+	uint32_t next = 0;
+	for (size_t gi = 0; gi < ng; gi++) {
+		struct group *g = b->groups.data[gi];
+		g->rows = 0;
+		for (uint32_t k = 0; k < ntiles; k++)
+			for (int L = 0; L < BAKE_LEVELS; L++)
+				g->rows += counts[((size_t)k * ng + gi) * BAKE_LEVELS + L];
+		g->first_id = next;
+		next += (uint32_t)g->rows;
+	}
+	/* New ids, and the entries and levels in them. */
+	uint32_t *src = rl_xmalloc((total_rows + 1) * sizeof(uint32_t));
+	uint32_t *ent_id = rl_xmalloc((f.offsets[npix] + 1) * sizeof(uint32_t));
+	uint32_t *lv_id[BAKE_LEVELS - 1];
+	for (int L = 0; L < BAKE_LEVELS - 1; L++)
+		lv_id[L] = rl_xmalloc(((size_t)lv[L].nx * lv[L].ny + 1) * sizeof(uint32_t));
+	cJSON *tiles_json = cJSON_CreateArray();
+	for (uint32_t k = 0; ok && k < ntiles; k++) {
+		uint32_t r[4];
+		tile_rect(&t, W, H, k, r);
+		cJSON *tj = cJSON_CreateObject();
+		cJSON *rect = cJSON_AddArrayToObject(tj, "rect");
+		for (int i = 0; i < 4; i++)
+			cJSON_AddItemToArray(rect, cJSON_CreateNumber(r[i]));
+		cJSON *sj = cJSON_AddArrayToObject(tj, "surfaces");
+		for (size_t gi = 0; gi < ng; gi++) {
+			cJSON *gj = cJSON_CreateObject();
+			cJSON_AddNumberToObject(gj, "first_row", (double)gfill[gi]);
+			cJSON *lj = cJSON_AddArrayToObject(gj, "levels");
+			uint64_t cum = 0;
+			for (int L = 0; L < BAKE_LEVELS; L++) {
+				cum += counts[((size_t)k * ng + gi) * BAKE_LEVELS + L];
+				cJSON_AddItemToArray(lj, cJSON_CreateNumber((double)cum));
+				st->level_samples[L] += cum;
+			}
+			cJSON_AddItemToArray(sj, gj);
+		}
+		cJSON_AddItemToArray(tiles_json, tj);
+		for (uint64_t i = tile_first[k]; i < tile_first[k + 1]; i++) {
+			uint32_t g = (uint32_t)(rows.data[i] >> 40), id = (uint32_t)rows.data[i];
+			uint32_t nidv = b->groups.data[g]->first_id + (uint32_t)gfill[g]++;
+			ii.map[id] = nidv;
+			src[nidv] = id;
+		}
+		for (int L = 0; L < BAKE_LEVELS - 1; L++) {
+			const struct level *l = &lv[L];
+			for (uint32_t by = r[1] / l->block; by * l->block < r[3]; by++)
+				for (uint32_t bx = r[0] / l->block; bx * l->block < r[2]; bx++) {
+					size_t bi = (size_t)by * l->nx + bx;
+					lv_id[L][bi] = l->id[bi] == UINT32_MAX ? UINT32_MAX
+									       : ii.map[l->id[bi]];
+				}
+		}
+		for (uint32_t y = r[1]; y < r[3]; y++)
+			for (uint32_t x = r[0]; x < r[2]; x++) {
+				size_t p = (size_t)y * W + x;
+				for (uint64_t e = f.offsets[p]; e < f.offsets[p + 1]; e++)
+					ent_id[e] = ii.map[f.id[e]];
+			}
+	}
+	free(gfill);
+	free(counts);
+	free(tile_first);
+	rl_vec_free(rows);
+	for (int L = 0; L < BAKE_LEVELS - 1; L++) {
+		st->level_entries[L] = 0;
+		for (size_t i = 0; i < (size_t)lv[L].nx * lv[L].ny; i++)
+			st->level_entries[L] += lv[L].id[i] != UINT32_MAX;
+	}
+	st->level_entries[BAKE_LEVELS - 1] = f.offsets[npix];
+	st->tiles = ntiles;
+	st->tile_size = t.T;
+
+	/* Sample tables, with constant channels dropped (kept in the
+	 * metadata), aliases dropped, half where it holds the values. */
+	size_t ntab = ng + 1 + (BAKE_LEVELS - 1);
+	struct shot_table *tabs = rl_xcalloc(ntab, sizeof(*tabs));
+	for (size_t gi = 0; ok && gi < ng; gi++) {
+		struct group *g = b->groups.data[gi];
+		struct shot_table *tb = &tabs[gi];
+		tb->name = g->table;
+		tb->nrows = g->rows;
+		tb->channels = rl_xcalloc(g->ncols + 2, sizeof(*tb->channels));
+		g->compress = cJSON_CreateObject();
+		cJSON *consts = cJSON_AddObjectToObject(g->compress, "constants");
+		cJSON *aliases = cJSON_AddObjectToObject(g->compress, "aliases");
+		double half_err = 0.0;
+		st->channels_dynamic += g->ncols;
+		uint32_t k = 0;
+		for (uint32_t col = 0; col < g->ncols; col++) {
+			while (col >= g->offset[k + 1])
+				k++;
+			char name[64];
+			snprintf(name, sizeof(name), "c%03u.%02u", k, col - g->offset[k]);
+			float *v = rl_xmalloc((g->rows + 1) * sizeof(float));
+			for (uint64_t r = 0; r < g->rows; r++) {
+				uint32_t id = src[g->first_id + r];
+				const struct chunk *ch = &g->chunks.data[ii.chunk[id]];
+				v[r] = ch->values[(size_t)(id - ch->id0) * g->ncols + col];
+			}
+			bool varies = false;
+			for (uint64_t r = 1; r < g->rows && !varies; r++)
+				varies = memcmp(&v[r], &v[0], sizeof(float)) != 0;
+			if (!varies) {
+				cJSON_AddItemToObject(consts, name,
+						      cJSON_CreateNumber(g->rows ? v[0] : 0.0));
+				free(v);
+				continue;
+			}
+			st->channels_varying++;
+			const char *same = NULL;
+			for (uint32_t d = 0; d < tb->nchannels && !same; d++)
+				if (!memcmp(v, tb->channels[d].data, g->rows * sizeof(float)))
+					same = tb->channels[d].name;
+			if (same) {
+				cJSON_AddStringToObject(aliases, name, same);
+				free(v);
+				continue;
+			}
+			st->channels_unique++;
+			struct shot_channel *c = &tb->channels[tb->nchannels++];
+			c->name = rl_xstrdup(name);
+			c->data = v;
+			enum sl_basetype type = g->prog->regs[g->spec->cached[k]].type;
+			c->type = !b->o->full_float && store_as_half(type, v, g->rows, &half_err)
+				  ? SHOT_HALF : SHOT_FLOAT;
+			if (c->type == SHOT_HALF)
+				st->channels_half++;
+			else
+				st->channels_float++;
+		}
+		cJSON_AddNumberToObject(g->compress, "half_max_relative_error", half_err);
+		uint32_t *obj = rl_xmalloc((g->rows + 1) * sizeof(uint32_t));
+		uint32_t *set = rl_xmalloc((g->rows + 1) * sizeof(uint32_t));
+		for (uint64_t r = 0; r < g->rows; r++) {
+			uint32_t id = src[g->first_id + r];
+			const struct chunk *ch = &g->chunks.data[ii.chunk[id]];
+			obj[r] = ch->object;
+			set[r] = ch->lightset;
+		}
+		tb->channels[tb->nchannels++] = (struct shot_channel){ rl_xstrdup("object"),
+								       SHOT_UINT, obj };
+		tb->channels[tb->nchannels++] = (struct shot_channel){ rl_xstrdup("lightset"),
+								       SHOT_UINT, set };
+	}
+	struct shot_table *pt = &tabs[ng];
 	pt->name = "pixels";
 	pt->nrows = npix;
 	pt->nchannels = 1;
 	pt->channels = rl_xcalloc(1, sizeof(*pt->channels));
-	pt->channels[0].name = rl_xstrdup("A");
-	pt->channels[0].type = SHOT_FLOAT;
-	pt->channels[0].data = alpha;
+	pt->channels[0] = (struct shot_channel){ rl_xstrdup("A"), SHOT_FLOAT, f.alpha };
+	f.alpha = NULL;
+	static const char *const level_table[BAKE_LEVELS - 1] = { "level0", "level1", "level2" };
+	for (int L = 0; L < BAKE_LEVELS - 1; L++) {
+		struct shot_table *lt = &tabs[ng + 1 + L];
+		lt->name = (char *)level_table[L];
+		lt->nrows = (uint64_t)lv[L].nx * lv[L].ny;
+		lt->nchannels = 2;
+		lt->channels = rl_xcalloc(2, sizeof(*lt->channels));
+		lt->channels[0] = (struct shot_channel){ rl_xstrdup("sample"), SHOT_UINT, lv_id[L] };
+		lt->channels[1] = (struct shot_channel){ rl_xstrdup("weight"), SHOT_FLOAT, lv[L].w };
+		lv[L].w = NULL;
+		lv_id[L] = NULL;
+	}
 
 	struct shot_channel dch[2] = {
 		{ .name = "sample", .type = SHOT_UINT, .data = ent_id },
-		{ .name = "weight", .type = SHOT_FLOAT, .data = ent_w },
+		{ .name = "weight", .type = SHOT_FLOAT, .data = f.w },
 	};
 	struct shot_deep deep = {
-		.name = "ifb", .width = W, .height = H, .offsets = offsets, .nchannels = 2,
+		.name = "ifb", .width = W, .height = H, .offsets = f.offsets, .nchannels = 2,
 		.channels = dch,
 	};
 
-	st->shading_samples = next;
-	st->indirect_entries = nentries;
+	/* distinct samples (a sample in several tiles has a row in each) */
+	{
+		uint8_t *seen = rl_xcalloc(nid + 1, 1);
+		uint64_t distinct = 0;
+		for (uint64_t e = 0; e < f.offsets[npix]; e++)
+			if (!seen[f.id[e]]) {
+				seen[f.id[e]] = 1;
+				distinct++;
+			}
+		free(seen);
+		st->shading_samples = distinct;
+		st->sample_rows = next;
+	}
+	st->indirect_entries = f.offsets[npix];
 	st->width = W;
 	st->height = H;
-	char *meta = metadata(b, st);
-	struct shot_file f = {
+	b->tiles_json = tiles_json;
+	char *meta = ok ? metadata(b, st) : NULL;
+	struct shot_file sf = {
 		.metadata = meta, .tables = tabs, .ntables = (uint32_t)ntab, .deeps = &deep,
 		.ndeeps = 1,
 	};
 	double t0 = now();
 	char err[1024] = "";
-	if (!meta || !shot_write(path, &f, &b->o->write, err, sizeof(err))) {
+	if (ok && (!meta || !shot_write(path, &sf, &b->o->write, err, sizeof(err)))) {
 		fprintf(b->diag, "relight: error: %s\n", meta ? err : "out of memory");
 		ok = false;
 	}
@@ -556,11 +985,21 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 		free(tabs[i].channels);
 	}
 	free(tabs);
+	for (int L = 0; L < BAKE_LEVELS - 1; L++) {
+		free(lv[L].id);
+		free(lv[L].w);
+		free(lv_id[L]);
+	}
 	free(ent_id);
-	free(ent_w);
-	free(newid);
-	free(offsets);
-	free(used);
+	free(src);
+	free(f.offsets);
+	free(f.id);
+	free(f.w);
+	free(f.alpha);
+	free(ii.group);
+	free(ii.chunk);
+	free(ii.level);
+	free(ii.map);
 	return ok;
 }
 
@@ -603,6 +1042,7 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 		free_group(b.groups.data[i]);
 	rl_vec_free(b.groups);
 	rl_vec_free(b.lightsets);
+	cJSON_Delete(b.tiles_json);
 	pthread_mutex_destroy(&b.lock);
 	return ok;
 }

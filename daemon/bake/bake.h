@@ -39,19 +39,39 @@ struct bake_opts {
 	bool progress;             /* a progress bar on stderr */
 	FILE *diag;                /* NULL: stderr */
 	struct shot_write_options write;
+	/* Screen tiles: each tile's samples, entries and levels take at most
+	 * this many bytes (0: BAKE_DEFAULT_TILE_BUDGET); the frame is one tile
+	 * when it fits. */
+	uint64_t tile_budget;
+	/* Shadow geometry's dicing rate, in pixels of area as ShadingRate (0:
+	 * BAKE_DEFAULT_SHADOW_RATE). */
+	float shadow_rate;
+	bool full_float;           /* store no channel as half */
 };
+
+#define BAKE_DEFAULT_TILE_BUDGET (512ull << 20)
+#define BAKE_DEFAULT_SHADOW_RATE 4.0f
+/** Refinement levels (lightspeed §5.2): 4x4 blocks, 2x2 blocks, one entry a pixel, all. */
+#define BAKE_LEVELS 4
 
 struct bake_stats {
 	double render_seconds, write_seconds;
 	uint64_t shaded_points;    /* grid points the renderer shaded */
 	uint64_t shading_samples;  /* kept: reached some pixel */
+	uint64_t sample_rows;      /* rows stored: a sample several tiles use has one in each */
 	uint64_t subpixel_samples; /* pixels x pixel samples */
 	uint64_t raw_entries;      /* (pixel, sample) contributions before merging */
 	uint64_t indirect_entries; /* entries kept */
 	/* cached scalars per sample, summed over surface shaders; those that
 	 * vary over the frame; those among them no other channel equals */
 	uint32_t channels_dynamic, channels_varying, channels_unique;
+	/* channels stored: as half, as float (the rest are constants or aliases) */
+	uint32_t channels_half, channels_float;
 	uint32_t width, height;
+	uint32_t tiles, tile_size;           /* tile_size: 0 when the frame is one tile */
+	/* per refinement level: shading samples shaded (all tiles) and entries resolved */
+	uint64_t level_samples[BAKE_LEVELS], level_entries[BAKE_LEVELS];
+	uint64_t shadow_points, shadow_quads; /* shadow geometry (0: no light casts shadows) */
 };
 
 /**

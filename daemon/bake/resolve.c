@@ -45,6 +45,7 @@ struct resolver {
 	struct reyes_texsys *tex;
 	float *Ci;                 /* 3 per sample id */
 	uint64_t nsamples;
+	uint64_t shaded;           /* samples shaded */
 };
 
 static bool fail(struct resolver *r, const char *fmt, const char *a, const char *b)
@@ -166,8 +167,37 @@ static bool tex_shadow(void *user, const struct sl_tex_lookup *q)
 	return reyes_tex_shadow(((struct sl_lighthost *)user)->owner, q);
 }
 
-/* Shade one surface's samples. */
-static bool shade_surface(struct resolver *r, const cJSON *s)
+/* A channel of a surface table by name: stored, constant or an alias. */
+static const float *channel(struct resolver *r, const struct shot_table *t, const cJSON *chans,
+			    const char *name, float **owned, int depth)
+{
+	for (uint32_t c = 0; c < t->nchannels; c++)
+		if (!strcmp(t->channels[c].name, name))
+			return t->channels[c].type == SHOT_UINT ? NULL : t->channels[c].data;
+	const cJSON *k = cJSON_GetObjectItemCaseSensitive(
+		cJSON_GetObjectItemCaseSensitive(chans, "constants"), name);
+	if (cJSON_IsNumber(k) && isfinite(k->valuedouble)) {
+		float *v = rl_xmalloc((t->nrows + 1) * sizeof(float));
+		for (uint64_t i = 0; i < t->nrows; i++)
+			v[i] = (float)k->valuedouble;
+		*owned = v;
+		return v;
+	}
+	const cJSON *a = cJSON_GetObjectItemCaseSensitive(
+		cJSON_GetObjectItemCaseSensitive(chans, "aliases"), name);
+	if (cJSON_IsString(a) && depth < 4 && strcmp(a->valuestring, name))
+		return channel(r, t, chans, a->valuestring, owned, depth + 1);
+	return NULL;
+}
+
+/* Rows [lo, hi) of a surface table to shade. */
+struct span {
+	uint64_t lo, hi;
+};
+
+/* Shade the rows @spans of one surface's samples. */
+static bool shade_surface(struct resolver *r, const cJSON *s, const struct span *spans,
+			  size_t nspans)
 {
 	const char *table = str(s, "table");
 	const struct shot_table *t = table ? shot_find_table(r->f, table) : NULL;
@@ -175,6 +205,10 @@ static bool shade_surface(struct resolver *r, const cJSON *s)
 	if (!t || !cJSON_IsNumber(first) || first->valuedouble < 0 ||
 	    first->valuedouble + (double)t->nrows > (double)r->nsamples)
 		return fail(r, "the surface table '%s' is missing or does not fit%s", table, NULL);
+	for (size_t i = 0; i < nspans; i++)
+		if (spans[i].lo > spans[i].hi || spans[i].hi > t->nrows)
+			return fail(r, "the tiles of the metadata do not fit table '%s'%s", table,
+				    NULL);
 	uint64_t id0 = (uint64_t)first->valuedouble;
 	struct sl_program *prog = load_shader(r, s);
 	if (!prog)
@@ -189,29 +223,26 @@ static bool shade_surface(struct resolver *r, const cJSON *s)
 	struct sl_spec *spec = sl_specialize_ex(prog, names, nd, SL_SPEC_CACHE_PARAMS, r->diag);
 	bool ok = spec != NULL;
 	uint32_t stride = ok ? sl_spec_cache_layout(spec, NULL) : 0;
-	/* the table's channels by name: the values, then lightset (files keep
-	 * channels in name order) */
+	/* each float of a sample's record: its channel */
 	const float **col = rl_xcalloc(stride + 1, sizeof(float *));
+	float **owned = rl_xcalloc(stride + 1, sizeof(float *));
 	const uint32_t *lightset = NULL;
 	uint32_t *offset = ok ? rl_xcalloc(spec->ncached + 1, sizeof(uint32_t)) : NULL;
 	if (ok)
 		sl_spec_cache_layout(spec, offset);
-	for (uint32_t c = 0; ok && c < t->nchannels; c++) {
-		const struct shot_channel *ch = &t->channels[c];
-		unsigned k, comp;
-		char tail;
-		if (!strcmp(ch->name, "lightset") && ch->type == SHOT_UINT) {
-			lightset = ch->data;
-		} else if (sscanf(ch->name, "c%3u.%2u%c", &k, &comp, &tail) == 2 &&
-			   ch->type != SHOT_UINT && k < spec->ncached) {
-			uint32_t at = offset[k] + comp;
-			uint32_t end = k + 1 < spec->ncached ? offset[k + 1] : stride;
-			if (at < end)
-				col[at] = ch->data;
+	const cJSON *chans = cJSON_GetObjectItemCaseSensitive(s, "channels");
+	for (uint32_t k = 0; ok && k < spec->ncached; k++) {
+		uint32_t end = k + 1 < spec->ncached ? offset[k + 1] : stride;
+		for (uint32_t at = offset[k]; at < end; at++) {
+			char name[64];
+			snprintf(name, sizeof(name), "c%03u.%02u", k, at - offset[k]);
+			col[at] = channel(r, t, chans, name, &owned[at], 0);
+			ok = ok && col[at];
 		}
 	}
-	for (uint32_t c = 0; ok && c < stride; c++)
-		ok = col[c] != NULL;
+	for (uint32_t c = 0; c < t->nchannels; c++)
+		if (!strcmp(t->channels[c].name, "lightset") && t->channels[c].type == SHOT_UINT)
+			lightset = t->channels[c].data;
 	if (ok && !lightset)
 		ok = false;
 	free(offset);
@@ -241,18 +272,26 @@ static bool shade_surface(struct resolver *r, const cJSON *s)
 			memcpy(lm[nl], r->lights[k].to_camera, sizeof(lm[nl]));
 			nl++;
 		}
-		uint64_t row = 0;
-		while (ok && row < t->nrows) {
+		size_t sp = 0;
+		uint64_t row = nspans ? spans[0].lo : 0;
+		while (ok) {
 			uint32_t n = 0;
-			for (; row < t->nrows && n < BATCH; row++) {
-				if (lightset[row] != (uint32_t)set)
+			while (sp < nspans && n < BATCH) {
+				if (row >= spans[sp].hi) {
+					if (++sp < nspans)
+						row = spans[sp].lo;
 					continue;
-				for (uint32_t c = 0; c < stride; c++)
-					rec[(size_t)n * stride + c] = col[c][row];
-				rows[n++] = (uint32_t)row;
+				}
+				if (lightset[row] == (uint32_t)set) {
+					for (uint32_t c = 0; c < stride; c++)
+						rec[(size_t)n * stride + c] = col[c][row];
+					rows[n++] = (uint32_t)row;
+				}
+				row++;
 			}
 			if (!n)
 				break;
+			r->shaded += n;
 			struct sl_lighthost lh;
 			sl_lighthost_init(&lh, lx, nl);
 			lh.light_shader_mats = (const float (*)[16])lm;
@@ -281,11 +320,38 @@ static bool shade_surface(struct resolver *r, const cJSON *s)
 	}
 	free(rec);
 	free(rows);
+	for (uint32_t c = 0; c < stride; c++)
+		free(owned[c]);
+	free(owned);
 	free(col);
 	sl_exec_destroy(x);
 	sl_spec_destroy(spec);
 	sl_program_destroy(prog);
 	return ok;
+}
+
+/* The rows of surface @si that level @L needs, tile by tile. */
+static size_t level_spans(struct resolver *r, int si, int L, struct span **out)
+{
+	const cJSON *tiles = cJSON_GetObjectItemCaseSensitive(
+		cJSON_GetObjectItemCaseSensitive(r->meta, "tiling"), "tiles");
+	size_t n = 0, cap = (size_t)cJSON_GetArraySize(tiles) + 1;
+	*out = rl_xcalloc(cap, sizeof(**out));
+	const cJSON *t;
+	cJSON_ArrayForEach(t, tiles) {
+		const cJSON *g = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(t, "surfaces"),
+						    si);
+		const cJSON *first = cJSON_GetObjectItemCaseSensitive(g, "first_row");
+		const cJSON *cnt = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(g, "levels"),
+						      L);
+		if (!cJSON_IsNumber(first) || !cJSON_IsNumber(cnt) || first->valuedouble < 0 ||
+		    cnt->valuedouble < 0 || first->valuedouble > 1e15 || cnt->valuedouble > 1e15)
+			continue;
+		(*out)[n].lo = (uint64_t)first->valuedouble;
+		(*out)[n].hi = (*out)[n].lo + (uint64_t)cnt->valuedouble;
+		n++;
+	}
+	return n;
 }
 
 bool resolve_cpu(const char *path, const struct resolve_opts *opts, struct resolve_result *out)
@@ -329,10 +395,28 @@ bool resolve_cpu(const char *path, const struct resolve_opts *opts, struct resol
 	}
 	out->load_seconds = now() - t0;
 	double t1 = now();
+	int L = opts && opts->level >= 0 && opts->level < RESOLVE_FINAL ? opts->level
+									  : RESOLVE_FINAL;
+	const struct shot_table *lt = NULL;
+	if (ok && L < RESOLVE_FINAL) {
+		static const char *const name[RESOLVE_FINAL] = { "level0", "level1", "level2" };
+		static const uint32_t block[RESOLVE_FINAL] = { 4, 2, 1 };
+		lt = shot_find_table(r.f, name[L]);
+		if (!lt || lt->nchannels != 2 || lt->channels[0].type != SHOT_UINT ||
+		    lt->nrows != (uint64_t)((ifb->width + block[L] - 1) / block[L]) *
+				 ((ifb->height + block[L] - 1) / block[L]))
+			ok = fail(&r, "the refinement level table '%s' is missing or malformed%s",
+				  name[L], NULL);
+	}
+	int si = 0;
 	if (ok)
-		cJSON_ArrayForEach(s, surfaces)
-			if (ok && !shade_surface(&r, s))
+		cJSON_ArrayForEach(s, surfaces) {
+			struct span *spans;
+			size_t n = level_spans(&r, si++, L, &spans);
+			if (ok && !shade_surface(&r, s, spans, n))
 				ok = false;
+			free(spans);
+		}
 	out->shade_seconds = now() - t1;
 
 	if (ok) {
@@ -344,7 +428,36 @@ bool resolve_cpu(const char *path, const struct resolve_opts *opts, struct resol
 		const uint32_t *sid = ifb->channels[0].data;
 		const float *wt = ifb->channels[1].data;
 		const float *alpha = pix->channels[0].data;
-		for (size_t p = 0; p < (size_t)W * H; p++) {
+		if (lt) {
+			/* channels come in name order: sample, weight */
+			uint32_t B = L == 0 ? 4 : L == 1 ? 2 : 1, nx = (W + B - 1) / B;
+			const uint32_t *bid = lt->channels[0].data;
+			const float *bw = lt->channels[1].data;
+			/* alpha: the block's mean */
+			float *ba = rl_xcalloc(lt->nrows + 1, sizeof(float));
+			for (uint32_t y = 0; y < H; y++)
+				for (uint32_t x = 0; x < W; x++)
+					ba[(size_t)(y / B) * nx + x / B] +=
+						isfinite(alpha[(size_t)y * W + x]) ? alpha[(size_t)y * W + x]
+										    : 0.0f;
+			for (uint32_t y = 0; y < H; y++)
+				for (uint32_t x = 0; x < W; x++) {
+					size_t b = (size_t)(y / B) * nx + x / B, p = (size_t)y * W + x;
+					uint32_t bx0 = x / B * B, by0 = y / B * B;
+					uint32_t bwid = bx0 + B < W ? B : W - bx0;
+					uint32_t bhei = by0 + B < H ? B : H - by0;
+					float w = isfinite(bw[b]) ? bw[b] : 0.0f;
+					for (int k = 0; k < 3; k++) {
+						float v = bid[b] < r.nsamples
+							  ? w * r.Ci[(size_t)bid[b] * 3 + k] : 0.0f;
+						out->rgba[p * 4 + k] = isfinite(v) ? v : 0.0f;
+					}
+					out->rgba[p * 4 + 3] = ba[b] / (float)(bwid * bhei);
+				}
+			free(ba);
+			out->entries = lt->nrows;
+		}
+		for (size_t p = 0; !lt && p < (size_t)W * H; p++) {
 			double c[3] = { 0, 0, 0 };
 			for (uint64_t e = ifb->offsets[p]; e < ifb->offsets[p + 1]; e++) {
 				if (sid[e] >= r.nsamples)
@@ -356,8 +469,9 @@ bool resolve_cpu(const char *path, const struct resolve_opts *opts, struct resol
 				out->rgba[p * 4 + k] = isfinite(c[k]) ? (float)c[k] : 0.0f;
 			out->rgba[p * 4 + 3] = isfinite(alpha[p]) ? alpha[p] : 0.0f;
 		}
-		out->samples = r.nsamples;
-		out->entries = ifb->offsets[(size_t)W * H];
+		out->samples = r.shaded;
+		if (!lt)
+			out->entries = ifb->offsets[(size_t)W * H];
 		out->resolve_seconds = now() - t2;
 	}
 	for (uint32_t i = 0; i < r.nlights; i++) {

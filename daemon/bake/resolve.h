@@ -15,7 +15,13 @@ struct resolve_opts {
 	FILE *diag;                /* NULL: stderr */
 	const char *texture_path;  /* where shadow maps and textures are found ("." when NULL) */
 	bool progress;             /* a progress bar on stderr */
+	/* The refinement level (lightspeed §5.2): 0, one entry per 4x4 block;
+	 * 1, per 2x2 block; 2, one entry per pixel; 3 (RESOLVE_FINAL), all
+	 * entries. Only the samples the level uses are shaded. */
+	int level;
 };
+
+#define RESOLVE_FINAL 3
 
 struct resolve_result {
 	uint32_t width, height;

@@ -36,6 +36,15 @@ static void usage(FILE *out)
 		"  --compress MODE          none (default), rle, zips or zip: how the shot's\n"
 		"                           parts are compressed (zip only for the sample\n"
 		"                           tables; the indirect framebuffer then uses zips)\n"
+		"  --tile-budget MB         Split the frame into screen tiles of at most MB\n"
+		"                           megabytes of samples and entries each (default:\n"
+		"                           %llu; the frame is one tile when it fits)\n"
+		"  --shadow-rate R          Dice the shadow geometry of shadow-casting lights\n"
+		"                           to micropolygons of R pixels' area (as ShadingRate;\n"
+		"                           default: %g)\n"
+		"  --full-float             Store every channel as 32-bit float (default: half\n"
+		"                           where it holds the values: colours, normals and\n"
+		"                           vectors in half's range, exact halves)\n"
 		"  -t, --threads N          Render with N threads (default: all cores)\n"
 		"  -q, --quiet              No progress bar and no summary\n"
 		"  -h, --help               Show this help and exit\n"
@@ -45,6 +54,7 @@ static void usage(FILE *out)
 		"\n"
 		"Exit status: 0 on success, 1 when the scene has errors or cannot be baked\n"
 		"(reported with the file and line), 2 on a usage error.\n",
+		BAKE_DEFAULT_TILE_BUDGET >> 20, (double)BAKE_DEFAULT_SHADOW_RATE,
 		RELIGHT_SOURCE_SHADER_DIR);
 }
 
@@ -136,6 +146,9 @@ int cmd_bake(int argc, char **argv)
 		{ "dynamic-surface", required_argument, NULL, 'd' },
 		{ "compress", required_argument, NULL, 'c' },
 		{ "threads", required_argument, NULL, 't' },
+		{ "tile-budget", required_argument, NULL, 'b' },
+		{ "shadow-rate", required_argument, NULL, 'r' },
+		{ "full-float", no_argument, NULL, 'f' },
 		{ "quiet", no_argument, NULL, 'q' },
 		{ NULL, 0, NULL, 0 },
 	};
@@ -183,6 +196,33 @@ int cmd_bake(int argc, char **argv)
 				return usage_error("--threads needs a number from 1 to 64, not '%s'",
 						   optarg);
 			}
+			break;
+		case 'b': {
+			char *end;
+			errno = 0;
+			double mb = strtod(optarg, &end);
+			if (end == optarg || *end || errno || !(mb >= 0.01 && mb <= 1048576.0)) {
+				free(dyn);
+				return usage_error("--tile-budget needs megabytes from 0.01 to 1048576, "
+						   "not '%s'", optarg);
+			}
+			job.bo.tile_budget = (uint64_t)(mb * 1048576.0);
+			break;
+		}
+		case 'r': {
+			char *end;
+			errno = 0;
+			double r = strtod(optarg, &end);
+			if (end == optarg || *end || errno || !(r >= 0.01 && r <= 10000.0)) {
+				free(dyn);
+				return usage_error("--shadow-rate needs a number from 0.01 to 10000, "
+						   "not '%s'", optarg);
+			}
+			job.bo.shadow_rate = (float)r;
+			break;
+		}
+		case 'f':
+			job.bo.full_float = true;
 			break;
 		case 'q':
 			job.quiet = true;

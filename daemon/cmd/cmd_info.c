@@ -28,8 +28,10 @@ static void usage(FILE *out)
 		"Options:\n"
 		"  --json       One JSON object with keys width, height, lights, surfaces,\n"
 		"               shaded_points, shading_samples, subpixel_samples,\n"
-		"               indirect_entries, channels {dynamic, varying, unique},\n"
-		"               bytes {PART: N}, total_bytes, format\n"
+		"               indirect_entries, channels {dynamic, varying, unique,\n"
+		"               half, float}, sample_rows, tiles, tile_size, levels\n"
+		"               [{block, samples, entries}], bytes {PART: N},\n"
+		"               total_bytes, format\n"
 		"  -h, --help   Show this help and exit\n"
 		"\n"
 		"Exit status: 0 on success, 1 when the file cannot be read as a shot file,\n"
@@ -112,6 +114,20 @@ int cmd_info(int argc, char **argv)
 	cJSON_AddNumberToObject(c, "dynamic", num(chn, "dynamic"));
 	cJSON_AddNumberToObject(c, "varying", num(chn, "varying"));
 	cJSON_AddNumberToObject(c, "unique", num(chn, "unique"));
+	cJSON_AddNumberToObject(c, "half", num(chn, "half"));
+	cJSON_AddNumberToObject(c, "float", num(chn, "float"));
+	cJSON_AddNumberToObject(out, "sample_rows", num(fig, "sample_rows"));
+	cJSON_AddNumberToObject(out, "tiles", num(fig, "tiles"));
+	const cJSON *tiling = cJSON_GetObjectItemCaseSensitive(meta, "tiling");
+	cJSON_AddNumberToObject(out, "tile_size", num(tiling, "tile_size"));
+	cJSON *levels = cJSON_AddArrayToObject(out, "levels");
+	cJSON_ArrayForEach(l, cJSON_GetObjectItemCaseSensitive(meta, "levels")) {
+		cJSON *lj = cJSON_CreateObject();
+		cJSON_AddNumberToObject(lj, "block", num(l, "block"));
+		cJSON_AddNumberToObject(lj, "samples", num(l, "samples"));
+		cJSON_AddNumberToObject(lj, "entries", num(l, "entries"));
+		cJSON_AddItemToArray(levels, lj);
+	}
 	cJSON *bytes = cJSON_AddObjectToObject(out, "bytes");
 	double total = 0;
 	for (uint32_t i = 0; i < f->ntables + f->ndeeps; i++) {
@@ -142,8 +158,25 @@ int cmd_info(int argc, char **argv)
 		       ss > 0 ? sp / ss : 0.0);
 		printf("indirect entries: %.0f for %.0f subpixel samples (%.2fx fewer)\n", ie, sub,
 		       ie > 0 ? sub / ie : 0.0);
-		printf("channels per sample: %g dynamic, %g varying, %g unique\n",
-		       num(chn, "dynamic"), num(chn, "varying"), num(chn, "unique"));
+		printf("channels per sample: %g dynamic, %g varying, %g unique (%g half, %g float)\n",
+		       num(chn, "dynamic"), num(chn, "varying"), num(chn, "unique"),
+		       num(chn, "half"), num(chn, "float"));
+		double ts = num(tiling, "tile_size");
+		if (ts > 0)
+			printf("tiles: %g of %gx%g pixels, %.0f sample rows\n", num(fig, "tiles"), ts,
+			       ts, num(fig, "sample_rows"));
+		else
+			printf("tiles: 1 (the whole frame)\n");
+		printf("refinement levels:\n");
+		int k = 0;
+		cJSON_ArrayForEach(l, levels) {
+			double bl = num(l, "block");
+			const char *what = bl == 4 ? "4x4 pixel blocks" : bl == 2 ? "2x2 pixel blocks"
+					 : k == 2 ? "one entry per pixel" : "all entries";
+			printf("  %d: %-22s %10.0f samples %10.0f entries\n", k, what,
+			       num(l, "samples"), num(l, "entries"));
+			k++;
+		}
 		printf("bytes: %.0f in all\n", total);
 		const cJSON *b;
 		cJSON_ArrayForEach(b, bytes)

@@ -17,7 +17,7 @@
 static void usage(FILE *out)
 {
 	fprintf(out,
-		"usage: relight preview --cpu [--level final] [-o OUT.exr] [--json] SHOT.exr\n"
+		"usage: relight preview --cpu [--level N|final] [-o OUT.exr] [--json] SHOT.exr\n"
 		"\n"
 		"Relight a shot file written by 'relight bake' and write the image. With --cpu\n"
 		"every shading sample is shaded by its surface's dynamic program on relight's\n"
@@ -28,7 +28,11 @@ static void usage(FILE *out)
 		"\n"
 		"Options:\n"
 		"  --cpu                Shade on the CPU (required: the GPU path is not built yet)\n"
-		"  --level final        The refinement level to resolve (only 'final' so far)\n"
+		"  --level N|final      The refinement level to resolve: 0, one sample per 4x4\n"
+		"                       pixel block; 1, per 2x2 block; 2, one sample per pixel\n"
+		"                       (the heaviest); 3 or final (default), every sample\n"
+		"                       with its antialiasing, motion blur and transparency\n"
+		"                       weight. Only the samples a level uses are shaded.\n"
 		"  -o, --output FILE    The image (OpenEXR, RGBA float; default: SHOT with\n"
 		"                       .shot.exr replaced by .preview.exr)\n"
 		"  --json               Print timings and counts as one JSON object\n"
@@ -55,6 +59,7 @@ static char *default_output(const char *shot)
 int cmd_preview(int argc, char **argv)
 {
 	bool cpu = false, json = false, quiet = false;
+	int level = RESOLVE_FINAL;
 	const char *output = NULL;
 	static const struct option long_opts[] = {
 		{ "help", no_argument, NULL, 'h' },
@@ -77,9 +82,15 @@ int cmd_preview(int argc, char **argv)
 			cpu = true;
 			break;
 		case 'l':
-			if (strcmp(optarg, "final"))
-				return usage_error("--level: only 'final' can be resolved so far, not "
-						   "'%s'", optarg);
+			if (!strcmp(optarg, "final")) {
+				level = RESOLVE_FINAL;
+			} else if (optarg[0] >= '0' && optarg[0] <= '0' + RESOLVE_FINAL &&
+				   !optarg[1]) {
+				level = optarg[0] - '0';
+			} else {
+				return usage_error("--level needs 0, 1, 2, 3 or final, not '%s'",
+						   optarg);
+			}
 			break;
 		case 'o':
 			output = optarg;
@@ -106,7 +117,7 @@ int cmd_preview(int argc, char **argv)
 	char *out_alloc = output ? NULL : default_output(shot);
 	if (!output)
 		output = out_alloc;
-	struct resolve_opts ro = { .diag = stderr, .texture_path = "." };
+	struct resolve_opts ro = { .diag = stderr, .texture_path = ".", .level = level };
 	struct resolve_result res;
 	bool ok = output && resolve_cpu(shot, &ro, &res);
 	if (ok) {
@@ -115,9 +126,10 @@ int cmd_preview(int argc, char **argv)
 					  .channel_names = (const char **)names, .data = res.rgba };
 		ok = reyes_image_write_exr(output, &im, false, stderr);
 		if (ok && json)
-			printf("{\"width\": %u, \"height\": %u, \"samples\": %llu, \"entries\": %llu, "
+			printf("{\"width\": %u, \"height\": %u, \"level\": %d, \"samples\": %llu, "
+			       "\"entries\": %llu, "
 			       "\"load_ms\": %.3f, \"shade_ms\": %.3f, \"resolve_ms\": %.3f, "
-			       "\"output\": \"%s\"}\n", res.width, res.height,
+			       "\"output\": \"%s\"}\n", res.width, res.height, level,
 			       (unsigned long long)res.samples, (unsigned long long)res.entries,
 			       res.load_seconds * 1e3, res.shade_seconds * 1e3,
 			       res.resolve_seconds * 1e3, output);

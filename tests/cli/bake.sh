@@ -121,6 +121,85 @@ checks=$((checks + 1))
 grep -q MotionBegin "$work/motion.rib" || fail "motion.rib has no motion"
 check_resolve "motion blur" motion.rib
 
+# Refinement levels (lightspeed §5.2): each coarser level shades fewer
+# samples and resolves fewer entries; the coarse levels are previews, so only
+# a loose bound holds for them (PSNR at least 20 dB on this scene), and the
+# error falls from the coarsest to the final level.
+for level in 0 1 2 3; do
+	run "level $level" bash -c "cd '$work' && '$relight' preview --cpu --level $level --json -o l$level.exr r.shot.exr"
+	expect_status 0
+	expect_no_crash
+	cp "$work/stdout" "$work/level$level.json"
+	run "level $level: diff" "$relight" diff --json "$work/ref.exr" "$work/l$level.exr"
+	cp "$work/stdout" "$work/diff$level.json"
+done
+checks=$((checks + 1))
+python3 - "$work" <<'PY' || fail "refinement levels are wrong"
+import json, sys
+w = sys.argv[1]
+lv = [json.load(open(f"{w}/level{i}.json")) for i in range(4)]
+df = [json.load(open(f"{w}/diff{i}.json")) for i in range(4)]
+for a, b in zip(lv, lv[1:]):
+    assert a["samples"] <= b["samples"] and a["entries"] <= b["entries"], (a, b)
+assert lv[0]["samples"] < lv[3]["samples"], lv
+assert lv[0]["entries"] == 10 * 8 and lv[1]["entries"] == 20 * 15, lv
+assert lv[2]["entries"] == 40 * 30, lv[2]
+for d in df[:3]:
+    assert d["psnr_db"] >= 20, d
+assert df[0]["rmse"] >= df[3]["rmse"] and df[2]["rmse"] >= df[3]["rmse"], df
+assert df[3]["mean_pct"] < 0.1 and df[3]["max_pct"] < 1.0, df[3]
+PY
+run "bad level" "$relight" preview --cpu --level 7 "$work/r.shot.exr"
+expect_status 2
+expect_stderr "--level needs 0, 1, 2, 3 or final"
+
+# Tiles: under a tiny budget the frame is cut into tiles, each with its own
+# samples; every level resolves exactly as from one tile.
+run "tiled bake" bash -c "cd '$work' && '$relight' bake -q --tile-budget 0.1 -o tiled.shot.exr motion.rib"
+expect_status 0
+run "tiled info" "$relight" info --json "$work/tiled.shot.exr"
+checks=$((checks + 1))
+python3 -c '
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["tiles"] > 1 and d["tile_size"] % 4 == 0, d
+assert d["sample_rows"] > d["shading_samples"], d
+' "$work/stdout" || fail "the tiny budget did not tile the frame"
+for level in 0 3; do
+	run "tiled level $level" bash -c "cd '$work' && '$relight' preview -q --cpu --level $level -o t$level.exr tiled.shot.exr"
+	expect_status 0
+	run "tiled level $level: same" "$relight" diff --json "$work/l$level.exr" "$work/t$level.exr"
+	checks=$((checks + 1))
+	python3 -c '
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["rmse"] == 0, d
+' "$work/stdout" || fail "tiles change level $level"
+done
+run "bad tile budget" "$relight" bake --tile-budget 0 "$work/two.rib"
+expect_status 2
+expect_stderr "--tile-budget needs megabytes"
+run "bad shadow rate" "$relight" bake --shadow-rate nan "$work/two.rib"
+expect_status 2
+expect_stderr "--shadow-rate needs a number"
+
+# Half channels: the default stores some channels as half, --full-float none;
+# both resolve within the tolerance above.
+run "full float" bash -c "cd '$work' && '$relight' bake -q --full-float -o ff.shot.exr motion.rib && '$relight' info --json ff.shot.exr"
+expect_status 0
+cp "$work/stdout" "$work/ff.json"
+run "default info" "$relight" info --json "$work/r.shot.exr"
+checks=$((checks + 1))
+python3 - "$work/ff.json" "$work/stdout" <<'PY' || fail "half channels are not used as they should be"
+import json, sys
+ff, hf = (json.load(open(p)) for p in sys.argv[1:3])
+assert ff["channels"]["half"] == 0 and ff["channels"]["float"] == ff["channels"]["unique"], ff
+assert hf["channels"]["half"] > 0, hf["channels"]
+assert hf["channels"]["half"] + hf["channels"]["float"] == hf["channels"]["unique"], hf
+assert sum(v for k, v in hf["bytes"].items() if k.startswith("samples.")) < \
+       sum(v for k, v in ff["bytes"].items() if k.startswith("samples.")), (hf["bytes"], ff["bytes"])
+PY
+
 run "preview without --cpu" "$relight" preview "$work/r.shot.exr"
 expect_status 2
 expect_stderr "only --cpu"
