@@ -5,6 +5,7 @@
  * pixel's entries sorted heaviest first) and the shot file.
  */
 #include "bake.h"
+#include "shadowgeo.h"
 
 #include "arena.h"
 #include "config.h"
@@ -63,6 +64,9 @@ struct bake {
 	uint64_t next_id;
 	bool failed;
 	cJSON *tiles_json;   /* the layout's tiles (for the metadata) */
+	struct bake_shadow_geometry shadow;  /* empty when no light casts shadows */
+	RL_VEC(uint32_t) casters;            /* lights that cast shadows */
+	float shadow_rate;
 };
 
 static double now(void)
@@ -363,6 +367,16 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 		cJSON_AddNumberToObject(l, "samples", (double)st->level_samples[L]);
 		cJSON_AddItemToArray(levels, l);
 	}
+	if (b->casters.len) {
+		cJSON *sg = cJSON_AddObjectToObject(root, "shadow_geometry");
+		cJSON_AddNumberToObject(sg, "rate", b->shadow_rate);
+		cJSON *ls = cJSON_AddArrayToObject(sg, "lights");
+		for (size_t i = 0; i < b->casters.len; i++)
+			cJSON_AddItemToArray(ls, cJSON_CreateNumber(b->casters.data[i]));
+		cJSON_AddStringToObject(sg, "points", "shadow.points");
+		cJSON_AddStringToObject(sg, "quads", "shadow.quads");
+		cJSON_AddStringToObject(sg, "space", "world");
+	}
 	cJSON *tl = cJSON_AddObjectToObject(root, "tiling");
 	cJSON_AddNumberToObject(tl, "tile_size", st->tile_size);
 	if (b->tiles_json) {
@@ -384,6 +398,8 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 	cJSON_AddNumberToObject(chn, "half", st->channels_half);
 	cJSON_AddNumberToObject(chn, "float", st->channels_float);
 	cJSON_AddNumberToObject(fig, "tiles", st->tiles);
+	cJSON_AddNumberToObject(fig, "shadow_points", (double)st->shadow_points);
+	cJSON_AddNumberToObject(fig, "shadow_quads", (double)st->shadow_quads);
 	char *text = cJSON_PrintUnformatted(root);
 	cJSON_Delete(root);
 	return text;
@@ -847,7 +863,8 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 
 	/* Sample tables, with constant channels dropped (kept in the
 	 * metadata), aliases dropped, half where it holds the values. */
-	size_t ntab = ng + 1 + (BAKE_LEVELS - 1);
+	bool shadow = b->casters.len > 0;
+	size_t ntab = ng + 1 + (BAKE_LEVELS - 1) + (shadow ? 2 : 0);
 	struct shot_table *tabs = rl_xcalloc(ntab, sizeof(*tabs));
 	for (size_t gi = 0; ok && gi < ng; gi++) {
 		struct group *g = b->groups.data[gi];
@@ -935,6 +952,41 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 		lt->channels[1] = (struct shot_channel){ rl_xstrdup("weight"), SHOT_FLOAT, lv[L].w };
 		lv[L].w = NULL;
 		lv_id[L] = NULL;
+	}
+
+	if (shadow) {
+		/* shadow geometry: points (world space) and micropolygons */
+		const struct bake_shadow_geometry *sg = &b->shadow;
+		struct shot_table *pts = &tabs[ng + BAKE_LEVELS];
+		pts->name = "shadow.points";
+		pts->nrows = sg->npoints;
+		pts->nchannels = 3;
+		pts->channels = rl_xcalloc(3, sizeof(*pts->channels));
+		static const char *const axis[3] = { "X", "Y", "Z" };
+		for (int c = 0; c < 3; c++) {
+			float *v = rl_xmalloc((sg->npoints + 1) * sizeof(float));
+			for (uint64_t i = 0; i < sg->npoints; i++)
+				v[i] = sg->P[i * 3 + (uint64_t)c];
+			pts->channels[c] = (struct shot_channel){ rl_xstrdup(axis[c]), SHOT_FLOAT, v };
+		}
+		struct shot_table *qs = &tabs[ng + BAKE_LEVELS + 1];
+		qs->name = "shadow.quads";
+		qs->nrows = sg->nquads;
+		qs->nchannels = 5;
+		qs->channels = rl_xcalloc(5, sizeof(*qs->channels));
+		for (int c = 0; c < 4; c++) {
+			uint32_t *v = rl_xmalloc((sg->nquads + 1) * sizeof(uint32_t));
+			for (uint64_t i = 0; i < sg->nquads; i++)
+				v[i] = sg->quads[i * 4 + (uint64_t)c];
+			char name[8];
+			snprintf(name, sizeof(name), "v%d", c);
+			qs->channels[c] = (struct shot_channel){ rl_xstrdup(name), SHOT_UINT, v };
+		}
+		uint32_t *obj = rl_xmalloc((sg->nquads + 1) * sizeof(uint32_t));
+		memcpy(obj, sg->object, sg->nquads * sizeof(uint32_t));
+		qs->channels[4] = (struct shot_channel){ rl_xstrdup("object"), SHOT_UINT, obj };
+		st->shadow_points = sg->npoints;
+		st->shadow_quads = sg->nquads;
 	}
 
 	struct shot_channel dch[2] = {
@@ -1029,6 +1081,12 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 		size_t np = (size_t)(bk->x1 - bk->x0) * (bk->y1 - bk->y0);
 		st->raw_entries += bk->offsets[np];
 	}
+	b.shadow_rate = opts->shadow_rate > 0.0f ? opts->shadow_rate : BAKE_DEFAULT_SHADOW_RATE;
+	for (uint32_t i = 0; ok && i < scene->nlights; i++)
+		if (bake_light_casts_shadows(scene, i))
+			rl_vec_push(b.casters, i);
+	if (ok && b.casters.len)
+		ok = bake_shadow_geometry(scene, b.shadow_rate, b.diag, &b.shadow);
 	if (ok)
 		ok = write_shot(&b, path, st);
 
@@ -1043,6 +1101,8 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 	rl_vec_free(b.groups);
 	rl_vec_free(b.lightsets);
 	cJSON_Delete(b.tiles_json);
+	bake_shadow_geometry_free(&b.shadow);
+	rl_vec_free(b.casters);
 	pthread_mutex_destroy(&b.lock);
 	return ok;
 }

@@ -29,7 +29,8 @@ static void usage(FILE *out)
 		"  --json       One JSON object with keys width, height, lights, surfaces,\n"
 		"               shaded_points, shading_samples, subpixel_samples,\n"
 		"               indirect_entries, channels {dynamic, varying, unique,\n"
-		"               half, float}, sample_rows, tiles, tile_size, levels\n"
+		"               half, float}, sample_rows, tiles, tile_size, shadow_points,\n"
+		"               shadow_quads, levels\n"
 		"               [{block, samples, entries}], bytes {PART: N},\n"
 		"               total_bytes, format\n"
 		"  -h, --help   Show this help and exit\n"
@@ -120,6 +121,8 @@ int cmd_info(int argc, char **argv)
 	cJSON_AddNumberToObject(out, "tiles", num(fig, "tiles"));
 	const cJSON *tiling = cJSON_GetObjectItemCaseSensitive(meta, "tiling");
 	cJSON_AddNumberToObject(out, "tile_size", num(tiling, "tile_size"));
+	cJSON_AddNumberToObject(out, "shadow_points", num(fig, "shadow_points"));
+	cJSON_AddNumberToObject(out, "shadow_quads", num(fig, "shadow_quads"));
 	cJSON *levels = cJSON_AddArrayToObject(out, "levels");
 	cJSON_ArrayForEach(l, cJSON_GetObjectItemCaseSensitive(meta, "levels")) {
 		cJSON *lj = cJSON_CreateObject();
@@ -167,6 +170,9 @@ int cmd_info(int argc, char **argv)
 			       ts, num(fig, "sample_rows"));
 		else
 			printf("tiles: 1 (the whole frame)\n");
+		if (num(fig, "shadow_quads") > 0)
+			printf("shadow geometry: %.0f micropolygons, %.0f points\n",
+			       num(fig, "shadow_quads"), num(fig, "shadow_points"));
 		printf("refinement levels:\n");
 		int k = 0;
 		cJSON_ArrayForEach(l, levels) {

@@ -12,6 +12,10 @@
  * Memory stays bounded by the grids that cross one bucket row. Each thread
  * has its own executors (one per shader instance) and its own hider; the
  * texture system is shared.
+ *
+ * reyes_dice runs the first half alone (pieces, split, dice, camera space,
+ * displace) on one thread, primitive by primitive, for the bake's shadow
+ * geometry.
  */
 #include "reyes.h"
 #include "geom.h"
@@ -244,6 +248,13 @@ struct render {
 	uint32_t nthreads;
 	uint64_t dropped;                /* pieces given up at the eye plane */
 	atomic_bool failed;
+	/*
+	 * Dicing only (reyes_dice): keep what the camera cannot see (measured
+	 * by the size of a pixel at its distance), and dice at @rate instead of
+	 * each primitive's ShadingRate when it is positive.
+	 */
+	bool keep_unseen;
+	float rate;
 };
 
 /* ---- bounding and splitting ---- */
@@ -420,11 +431,102 @@ static void add_job(struct render *r, const struct reyes_patch *pa, uint32_t nu,
 		j->row0 = j->row1;
 }
 
+/*
+ * Lengths of a piece along u and v for a piece the camera does not see, in
+ * units of the size a pixel has at the distance of each edge of a test dice
+ * (the distance from the eye, no nearer than the near clipping plane): what
+ * is off screen or behind the eye is diced as finely as if the camera turned
+ * to face it. False when memory runs out.
+ */
+static bool piece_extent_unseen(const struct render *r, const struct reyes_patch *pa,
+				float *lu, float *lv)
+{
+	enum { T = TEST_DICE, TT = TEST_DICE * TEST_DICE };
+	struct reyes_grid g = { 0 };
+	if (!reyes_patch_dice(pa, T, T, &g))
+		return false;
+	const struct camera *cam = &r->cam;
+	float m[16];
+	obj_to_camera(r, pa->prim->attrs, 0, m);
+	float c[TT][3], dist[TT];
+	for (int k = 0; k < TT; k++) {
+		float p[3] = { g.P[0][k], g.P[0][TT + k], g.P[0][2 * TT + k] };
+		sl_xform_point(c[k], m, p);
+		dist[k] = cam->perspective ? fmaxf(sl_v3_length(c[k]), cam->near) : 1;
+	}
+	reyes_grid_finish(&g);
+	/* a pixel's size at distance 1 (perspective) or anywhere (orthographic) */
+	float pw = fabsf(cam->screen[1] - cam->screen[0]) / cam->xres;
+	float ph = fabsf(cam->screen[3] - cam->screen[2]) / cam->yres;
+	float pix = fminf(pw, ph) / (cam->perspective ? cam->focal : 1);
+	float mu = 0, mv = 0;
+	for (int j = 0; j < T; j++) {
+		float su = 0, sv = 0;
+		for (int i = 0; i + 1 < T; i++) {
+			int a = j * T + i, b = a + 1;
+			float d[3] = { c[b][0] - c[a][0], c[b][1] - c[a][1], c[b][2] - c[a][2] };
+			su += sl_v3_length(d) / (pix * fminf(dist[a], dist[b]));
+			a = i * T + j;
+			b = a + T;
+			float e[3] = { c[b][0] - c[a][0], c[b][1] - c[a][1], c[b][2] - c[a][2] };
+			sv += sl_v3_length(e) / (pix * fminf(dist[a], dist[b]));
+		}
+		mu = fmaxf(mu, su);
+		mv = fmaxf(mv, sv);
+	}
+	*lu = mu;
+	*lv = mv;
+	return true;
+}
+
+static void split_piece(struct render *r, const struct reyes_patch *pa);
+
+/*
+ * Dice a piece @lu x @lv pixels long at the shading rate, in one grid if it
+ * fits, else split it in two.
+ */
+static void queue_piece(struct render *r, const struct reyes_patch *pa, float lu, float lv,
+			const float rb[4])
+{
+	float rate = r->rate > 0 ? r->rate
+		     : pa->prim->attrs->shading_rate > 0 ? pa->prim->attrs->shading_rate : 1;
+	float edge = sqrtf(rate);
+	float fu = ceilf(lu / edge), fv = ceilf(lv / edge);
+	uint32_t nu = (uint32_t)fminf(fmaxf(fu, 1), 4096) + 1;
+	uint32_t nv = (uint32_t)fminf(fmaxf(fv, 1), 4096) + 1;
+	if ((uint64_t)nu * nv > r->max_points && pa->depth < MAX_SPLIT_DEPTH) {
+		struct reyes_patch half[2];
+		reyes_patch_split(pa, lu >= lv, half);
+		split_piece(r, &half[0]);
+		split_piece(r, &half[1]);
+		return;
+	}
+	while ((uint64_t)nu * nv > r->max_points) {
+		if (nu >= nv)
+			nu = nu / 2 + 1;
+		else
+			nv = nv / 2 + 1;
+	}
+	add_job(r, pa, nu, nv, rb);
+}
+
 /* Split a piece until it can be diced in one grid, then queue it. */
 static void split_piece(struct render *r, const struct reyes_patch *pa)
 {
-	float rb[4], zmin;
+	float rb[4] = { 0, 0, 0, 0 }, zmin;
 	enum bound_result br = piece_bound(r, pa, rb, &zmin);
+	if (r->keep_unseen) {
+		float lu = 0, lv = 0;
+		if (br == B_OK && piece_extent(r, pa, &lu, &lv)) {
+			queue_piece(r, pa, lu, lv, rb);
+		} else if (piece_extent_unseen(r, pa, &lu, &lv)) {
+			rb[0] = rb[1] = rb[2] = rb[3] = 0;
+			queue_piece(r, pa, lu, lv, rb);
+		} else {
+			atomic_store(&r->failed, true);
+		}
+		return;
+	}
 	if (br == B_CULL)
 		return;
 	if (br == B_STRADDLE) {
@@ -451,25 +553,7 @@ static void split_piece(struct render *r, const struct reyes_patch *pa)
 		split_piece(r, &half[1]);
 		return;
 	}
-	float rate = pa->prim->attrs->shading_rate > 0 ? pa->prim->attrs->shading_rate : 1;
-	float edge = sqrtf(rate);
-	float fu = ceilf(lu / edge), fv = ceilf(lv / edge);
-	uint32_t nu = (uint32_t)fminf(fmaxf(fu, 1), 4096) + 1;
-	uint32_t nv = (uint32_t)fminf(fmaxf(fv, 1), 4096) + 1;
-	if ((uint64_t)nu * nv > r->max_points && pa->depth < MAX_SPLIT_DEPTH) {
-		struct reyes_patch half[2];
-		reyes_patch_split(pa, lu >= lv, half);
-		split_piece(r, &half[0]);
-		split_piece(r, &half[1]);
-		return;
-	}
-	while ((uint64_t)nu * nv > r->max_points) {
-		if (nu >= nv)
-			nu = nu / 2 + 1;
-		else
-			nv = nv / 2 + 1;
-	}
-	add_job(r, pa, nu, nv, rb);
+	queue_piece(r, pa, lu, lv, rb);
 }
 
 /* ---- shading ---- */
@@ -810,22 +894,26 @@ static void recompute_ng(struct cgrid *c, bool flip)
 		}
 }
 
-/* Dice, displace, shade and project one job; fills job->sh. */
-static bool shade_job(struct tctx *t, struct job *job)
+/*
+ * Dice a job into @g and carry it to camera space, displaced, in @c. On
+ * success the caller frees c->P0 (one buffer holds all of @c's planes) and
+ * finishes @g; on failure nothing is left to free.
+ */
+static bool dice_job(struct tctx *t, const struct job *job, struct reyes_grid *g,
+		     struct cgrid *cg)
 {
 	struct render *r = t->r;
 	const struct reyes_prim *prim = job->piece.prim;
 	const struct reyes_attrs *a = prim->attrs;
-	struct reyes_grid g = { 0 };
-	if (!reyes_patch_dice(&job->piece, job->nu, job->nv, &g))
+	if (!reyes_patch_dice(&job->piece, job->nu, job->nv, g))
 		return false;
-	uint32_t n = g.n;
-	struct cgrid c = { .nu = g.nu, .nv = g.nv, .n = n, .u = g.u, .v = g.v, .du = g.du,
-			   .dv = g.dv };
+	uint32_t n = g->n;
+	struct cgrid c = { .nu = g->nu, .nv = g->nv, .n = n, .u = g->u, .v = g->v, .du = g->du,
+			   .dv = g->dv };
 	/* camera-space buffers: P0 P1 N Ng dPdu dPdv I s t */
 	float *buf = malloc(sizeof(float) * n * 3 * 7 + sizeof(float) * n * 2);
 	if (!buf) {
-		reyes_grid_finish(&g);
+		reyes_grid_finish(g);
 		return false;
 	}
 	c.P0 = buf;
@@ -841,44 +929,37 @@ static bool shade_job(struct tctx *t, struct job *job)
 	obj_to_camera(r, a, 0, m0);
 	obj_to_camera(r, a, 1, m1);
 	normal_matrix(nm, m0);
-	xform_points(c.P0, g.P[0], n, m0);
-	xform_points(c.P1, g.P[1] ? g.P[1] : g.P[0], n, m1);
-	xform_vectors(c.dPdu, g.dPdu, n, m0);
-	xform_vectors(c.dPdv, g.dPdv, n, m0);
-	xform_normals(c.Ng, g.Ng, n, nm);
-	if (g.N)
-		xform_normals(c.N, g.N, n, nm);
+	xform_points(c.P0, g->P[0], n, m0);
+	xform_points(c.P1, g->P[1] ? g->P[1] : g->P[0], n, m1);
+	xform_vectors(c.dPdu, g->dPdu, n, m0);
+	xform_vectors(c.dPdv, g->dPdv, n, m0);
+	xform_normals(c.Ng, g->Ng, n, nm);
+	if (g->N)
+		xform_normals(c.N, g->N, n, nm);
 	else
 		memcpy(c.N, c.Ng, sizeof(float) * 3 * n);
-	memcpy(c.s, g.s ? g.s : g.u, sizeof(float) * n);
-	memcpy(c.t, g.t ? g.t : g.v, sizeof(float) * n);
-	c.Cs = g.Cs;
-	c.Os = g.Os;
+	memcpy(c.s, g->s ? g->s : g->u, sizeof(float) * n);
+	memcpy(c.t, g->t ? g->t : g->v, sizeof(float) * n);
+	c.Cs = g->Cs;
+	c.Os = g->Os;
 
-	struct spaces sp;
-	bool ok = true;
 	/* displacement */
 	if (a->displacement) {
+		struct spaces sp;
 		for (uint32_t k = 0; k < 3 * n; k++)
 			c.I[k] = c.P0[k];
 		struct sl_exec *dx = exec_for(t, a->displacement);
-		if (!dx) {
-			ok = false;
-			goto done;
-		}
+		if (!dx)
+			goto fail;
 		build_spaces(r, a, a->displacement, &sp);
 		setup_host(t, NULL, 0, NULL, &sp);
-		set_params(dx, a->displacement, &g);
+		set_params(dx, a->displacement, g);
 		fill_globals(t, dx, &c, a);
-		if (!sl_exec_run(dx, &t->lh.host)) {
-			ok = false;
-			goto done;
-		}
+		if (!sl_exec_run(dx, &t->lh.host))
+			goto fail;
 		float *P = malloc(sizeof(float) * 3 * n);
-		if (!P) {
-			ok = false;
-			goto done;
-		}
+		if (!P)
+			goto fail;
 		get_global(dx, SL_GLOBAL_P, P, 3, n);
 		for (uint32_t k = 0; k < 3 * n; k++) {
 			float d = P[k] - c.P0[k];
@@ -892,6 +973,28 @@ static bool shade_job(struct tctx *t, struct job *job)
 		 * matrix) does not. */
 		recompute_ng(&c, a->flip_normals != (sl_m44_det(m0) < 0));
 	}
+	*cg = c;
+	return true;
+fail:
+	free(buf);
+	reyes_grid_finish(g);
+	return false;
+}
+
+/* Dice, displace, shade and project one job; fills job->sh. */
+static bool shade_job(struct tctx *t, struct job *job)
+{
+	struct render *r = t->r;
+	const struct reyes_prim *prim = job->piece.prim;
+	const struct reyes_attrs *a = prim->attrs;
+	struct reyes_grid g = { 0 };
+	struct cgrid c;
+	if (!dice_job(t, job, &g, &c))
+		return false;
+	uint32_t n = g.n;
+	float *buf = c.P0;
+	struct spaces sp;
+	bool ok = true;
 	/* the incident ray, eye at the origin (orthographic: straight ahead) */
 	for (uint32_t k = 0; k < n; k++) {
 		if (r->cam.perspective) {
@@ -1553,5 +1656,98 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	free(r.aov);
 	reyes_texsys_destroy(r.tex);
 	sl_program_destroy(r.default_prog);
+	return ok;
+}
+
+bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *opts)
+{
+	struct render r = { 0 };
+	struct reyes_render_opts ro = { 0 };
+	r.diag = opts && opts->diag ? opts->diag : stderr;
+	if (!scene || !opts || !opts->grid) {
+		fprintf(r.diag, "relight: error: dicing needs a scene and a grid callback\n");
+		return false;
+	}
+	if (!(opts->rate >= 0) || !isfinite(opts->rate)) {
+		fprintf(r.diag, "relight: error: dicing rate %g is not a non-negative number\n",
+			(double)opts->rate);
+		return false;
+	}
+	const struct reyes_options *so = &scene->opts;
+	if (so->xres == 0 || so->yres == 0 || so->xres > 32768 || so->yres > 32768) {
+		fprintf(r.diag, "relight: error: image size %ux%u is out of range\n", so->xres,
+			so->yres);
+		return false;
+	}
+	r.scene = scene;
+	ro.diag = r.diag;
+	ro.texture_path = opts->texture_path;
+	r.o = &ro;
+	setup_camera(&r.cam, so);
+	float sw = r.cam.screen[1] - r.cam.screen[0], sh = r.cam.screen[3] - r.cam.screen[2];
+	if (!(fabsf(sw) > 0) || !(fabsf(sh) > 0) || !isfinite(sw) || !isfinite(sh)) {
+		fprintf(r.diag, "relight: error: the screen window [%g %g %g %g] is empty\n",
+			(double)r.cam.screen[0], (double)r.cam.screen[1], (double)r.cam.screen[2],
+			(double)r.cam.screen[3]);
+		return false;
+	}
+	/* the view is the whole frame: a crop window is a rendering matter */
+	r.px1 = so->xres;
+	r.py1 = so->yres;
+	r.margin = fmaxf(so->filter_width[0], so->filter_width[1]) * 0.5f + 1;
+	r.bucket = 16;
+	r.nbx = (r.px1 + r.bucket - 1) / r.bucket;
+	r.nby = (r.py1 + r.bucket - 1) / r.bucket;
+	r.max_points = opts->max_grid ? opts->max_grid : 1024;
+	r.nthreads = 1;
+	r.keep_unseen = !opts->cull_to_view;
+	r.rate = opts->rate;
+	r.tex = reyes_texsys_create(opts->texture_path ? opts->texture_path : so->texture_path,
+				    r.cam.c2w, r.diag);
+	struct tctx t = { .r = &r };
+	struct reyes_patch *pieces = NULL;
+	size_t np = 0, capp = 0;
+	bool ok = r.tex != NULL;
+	if (!ok)
+		fprintf(r.diag, "relight: error: out of memory\n");
+	for (uint32_t p = 0; ok && p < scene->nprims; p++) {
+		const struct reyes_prim *prim = &scene->prims[p];
+		if (opts->casters_only && !prim->attrs->casts_shadows)
+			continue;
+		np = 0;
+		if (!reyes_prim_pieces(prim, &pieces, &np, &capp))
+			continue;
+		/* one primitive at a time: the jobs never outgrow its pieces */
+		r.njobs = 0;
+		for (size_t k = 0; k < np; k++)
+			split_piece(&r, &pieces[k]);
+		if (atomic_load(&r.failed)) {
+			fprintf(r.diag, "relight: error: out of memory dicing primitive %u\n",
+				prim->id);
+			ok = false;
+		}
+		for (size_t i = 0; ok && i < r.njobs; i++) {
+			struct reyes_grid g = { 0 };
+			struct cgrid c;
+			if (!dice_job(&t, &r.jobs[i], &g, &c)) {
+				fprintf(r.diag, "relight: error: dicing or displacement failed "
+					"(primitive %u)\n", prim->id);
+				ok = false;
+				break;
+			}
+			ok = opts->grid(opts->user, prim, c.P0, c.nu, c.nv);
+			free(c.P0);
+			reyes_grid_finish(&g);
+		}
+	}
+	free(pieces);
+	if (r.dropped)
+		fprintf(r.diag, "relight: warning: %llu pieces crossing the eye plane were "
+			"dropped\n", (unsigned long long)r.dropped);
+	for (size_t k = 0; k < t.nexecs; k++)
+		sl_exec_destroy(t.execs[k].x);
+	free(t.execs);
+	free(r.jobs);
+	reyes_texsys_destroy(r.tex);
 	return ok;
 }

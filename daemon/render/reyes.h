@@ -48,7 +48,7 @@ struct reyes_bake_hooks {
 struct reyes_render_opts {
 	uint32_t threads;          /* 0: all cores */
 	uint32_t bucket_size;      /* pixels, 0: 16 */
-	uint32_t max_grid;         /* points per grid, 0: 256 (16x16 at shading rate 1) */
+	uint32_t max_grid;         /* points per grid, 0: 1024 (32x32 at shading rate 1) */
 	bool progress;             /* a progress bar on stderr */
 	FILE *diag;                /* NULL: stderr */
 	const char *texture_path;  /* for the texture system, NULL: the scene's option */
@@ -74,6 +74,45 @@ struct reyes_stats {
  */
 bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opts *opts,
 		  struct reyes_stats *stats);
+
+/** What reyes_dice does and where its grids go. */
+struct reyes_dice_opts {
+	/*
+	 * Largest micropolygon area, in pixels of the scene's camera, as
+	 * ShadingRate; 0: each primitive's own ShadingRate.
+	 */
+	float rate;
+	/*
+	 * Leave out, as reyes_render does, what the camera cannot see. When
+	 * false everything is diced: geometry in the view at @rate pixels,
+	 * geometry behind the eye or off the screen as finely as if the camera
+	 * turned to face it (by the size a pixel has at its distance from the
+	 * eye, no nearer than the near clipping plane).
+	 */
+	bool cull_to_view;
+	bool casters_only;         /* leave out primitives that cast no shadows */
+	uint32_t max_grid;         /* points per grid, 0: 1024 */
+	FILE *diag;                /* NULL: stderr */
+	const char *texture_path;  /* for displacement shaders, NULL: the scene's option */
+	void *user;
+	/**
+	 * A grid of @prim, @nu x @nv points (point (i, j) is k = j * nu + i),
+	 * displaced, in camera space at shutter open, planar: x, y, z of point
+	 * k at P[k], P[n + k], P[2n + k] with n = nu * nv. @P is the dicer's,
+	 * valid during the call. Return false to stop (dicing then fails).
+	 */
+	bool (*grid)(void *user, const struct reyes_prim *prim, const float *P, uint32_t nu,
+		     uint32_t nv);
+};
+
+/**
+ * The geometric half of the pipeline: bound, split and dice every primitive
+ * of @scene, in declaration order, run displacement shaders, and hand each
+ * grid to opts->grid. No surface is shaded and nothing is hidden. One
+ * thread. False on failure (reported on opts->diag, or when opts->grid
+ * said stop).
+ */
+bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *opts);
 
 /**
  * Is @scene's frame a shadow pass (every display a depth map)? Objects that

@@ -183,6 +183,31 @@ run "bad shadow rate" "$relight" bake --shadow-rate nan "$work/two.rib"
 expect_status 2
 expect_stderr "--shadow-rate needs a number"
 
+# Shadow geometry: written when a light casts shadows (a shadowspot with a
+# map; the map need not exist for the geometry), at the rate asked for.
+sed -e 's/LightSource "distantlight" 1/LightSource "shadowspot" 1 "from" [0 3 0] "to" [0 0 5] "shadowname" "none.shd"/' \
+    "$work/two.rib" >"$work/caster.rib"
+for rate in 4 16; do
+	run "shadow geometry at rate $rate" bash -c "cd '$work' && '$relight' bake -q --shadow-rate $rate -o caster$rate.shot.exr caster.rib 2>/dev/null && '$relight' info --json caster$rate.shot.exr"
+	expect_status 0
+	cp "$work/stdout" "$work/caster$rate.json"
+done
+checks=$((checks + 1))
+python3 - "$work/caster4.json" "$work/caster16.json" "$work/level3.json" <<'PY' || fail "shadow geometry figures are wrong"
+import json, sys
+a, b = (json.load(open(p)) for p in sys.argv[1:3])
+assert a["shadow_quads"] > 0 and a["bytes"]["shadow.quads"] > 0, a
+# a quarter of the area per micropolygon: about four times as many
+assert 2.5 < a["shadow_quads"] / b["shadow_quads"] < 5.5, (a["shadow_quads"], b["shadow_quads"])
+PY
+run "no caster, no shadow geometry" "$relight" info --json "$work/r.shot.exr"
+checks=$((checks + 1))
+python3 -c '
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["shadow_quads"] == 0 and "shadow.quads" not in d["bytes"], d
+' "$work/stdout" || fail "a shot without shadow-casting lights has shadow geometry"
+
 # Half channels: the default stores some channels as half, --full-float none;
 # both resolve within the tolerance above.
 run "full float" bash -c "cd '$work' && '$relight' bake -q --full-float -o ff.shot.exr motion.rib && '$relight' info --json ff.shot.exr"

@@ -1,0 +1,236 @@
+/*
+ * Shadow geometry: see shadowgeo.h.
+ *
+ * The dicing is the renderer's (reyes_dice): this file decides which lights
+ * need it and gathers the grids into world-space meshes.
+ */
+#include "shadowgeo.h"
+#include "reyes.h"
+#include "builtin.h"
+#include "ir.h"
+#include "mathlib.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- which lights cast shadows ---- */
+
+/*
+ * The value the light's instance gives string parameter @p: the RIB value,
+ * else the default when it is a constant. NULL when the default is computed
+ * (it may well be a map's name).
+ */
+static const char *string_param_value(const struct reyes_shader *sh, const struct sl_program *prog,
+				      const struct sl_param *p)
+{
+	for (uint32_t i = 0; i < sh->nparams; i++) {
+		const struct reyes_param_value *pv = &sh->params[i];
+		if (pv->name && !strcmp(pv->name, p->name) && pv->type == SL_TYPE_STRING)
+			return pv->strings && pv->nvalues && pv->strings[0] ? pv->strings[0] : "";
+	}
+	if (p->init_begin == p->init_end)
+		return "";
+	if (p->init_end - p->init_begin != 1 || p->init_end > prog->ncode)
+		return NULL;
+	const struct sl_insn *in = &prog->code[p->init_begin];
+	if (in->op != SL_OP_MOV || in->dst != p->reg || in->nargs != 1 || in->args[0] < 0 ||
+	    (uint32_t)in->args[0] >= prog->nregs)
+		return NULL;
+	const struct sl_reg *src = &prog->regs[in->args[0]];
+	if (src->kind != SL_REG_CONST || src->type != SL_TYPE_STRING || src->cindex >= prog->nstrings)
+		return NULL;
+	return prog->strings[src->cindex];
+}
+
+/* Is a string parameter (not an array, not an output) set to a non-empty name? */
+static bool any_string_param_set(const struct reyes_shader *sh, const struct sl_program *prog)
+{
+	for (uint32_t i = 0; i < prog->nparams; i++) {
+		const struct sl_param *p = &prog->params[i];
+		if (p->type.base != SL_TYPE_STRING || p->type.arraylen || p->output)
+			continue;
+		const char *v = string_param_value(sh, prog, p);
+		if (!v || *v)
+			return true;
+	}
+	return false;
+}
+
+/* Does register @reg, a shadow() map argument, name a map? */
+static bool names_map(const struct reyes_shader *sh, const struct sl_program *prog, int32_t reg)
+{
+	if (reg < 0 || (uint32_t)reg >= prog->nregs)
+		return false;
+	const struct sl_reg *r = &prog->regs[reg];
+	if (r->kind == SL_REG_CONST)
+		return r->type == SL_TYPE_STRING && r->cindex < prog->nstrings &&
+		       prog->strings[r->cindex][0];
+	if (r->kind == SL_REG_PARAM)
+		for (uint32_t i = 0; i < prog->nparams; i++)
+			if (prog->params[i].reg == reg) {
+				const char *v = string_param_value(sh, prog, &prog->params[i]);
+				return !v || *v;
+			}
+	/* a computed name: any name given to the light may reach it */
+	return any_string_param_set(sh, prog);
+}
+
+bool bake_light_casts_shadows(const struct reyes_scene *scene, uint32_t light)
+{
+	if (!scene || light >= scene->nlights)
+		return false;
+	const struct reyes_shader *sh = &scene->lights[light].shader;
+	const struct sl_program *prog = sh->prog;
+	if (!prog)
+		return false;
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		const struct sl_insn *in = &prog->code[i];
+		if (in->op != SL_OP_CALL || in->bi < 0 || (uint32_t)in->bi >= sl_nbuiltins ||
+		    sl_builtins[in->bi].id != SL_BI_SHADOW || in->nargs < 1)
+			continue;
+		if (names_map(sh, prog, in->args[0]))
+			return true;
+	}
+	return false;
+}
+
+/* ---- gathering the grids ---- */
+
+struct gather {
+	struct bake_shadow_geometry *out;
+	float c2w[16];               /* camera to world */
+	uint64_t cap_points, cap_quads, cap_object;
+	uint64_t bad_points;         /* not finite: their micropolygons are left out */
+	FILE *diag;
+};
+
+/* Make room for @need elements of @elem bytes in *data (capacity *cap). */
+static bool reserve(void **data, uint64_t *cap, uint64_t need, size_t elem)
+{
+	if (need <= *cap)
+		return true;
+	uint64_t nc = *cap ? *cap : 4096;
+	while (nc < need)
+		nc *= 2;
+	if (nc > SIZE_MAX / elem)
+		return false;
+	void *p = realloc(*data, (size_t)nc * elem);
+	if (!p)
+		return false;
+	*data = p;
+	*cap = nc;
+	return true;
+}
+
+static bool on_grid(void *user, const struct reyes_prim *prim, const float *P, uint32_t nu,
+		    uint32_t nv)
+{
+	struct gather *gt = user;
+	struct bake_shadow_geometry *o = gt->out;
+	if (nu < 2 || nv < 2)
+		return true;
+	uint64_t n = (uint64_t)nu * nv, nq = (uint64_t)(nu - 1) * (nv - 1);
+	if (o->npoints + n > UINT32_MAX || o->ngrids == UINT32_MAX) {
+		fprintf(gt->diag, "relight: error: the shadow geometry would have more than %u "
+			"points: dice it coarser (a larger shadow rate)\n", UINT32_MAX);
+		return false;
+	}
+	if (!reserve((void **)&o->P, &gt->cap_points, o->npoints + n, 3 * sizeof(float)) ||
+	    !reserve((void **)&o->quads, &gt->cap_quads, o->nquads + nq, 4 * sizeof(uint32_t)) ||
+	    !reserve((void **)&o->object, &gt->cap_object, o->nquads + nq, sizeof(uint32_t))) {
+		fprintf(gt->diag, "relight: error: out of memory for the shadow geometry (%llu "
+			"points)\n", (unsigned long long)(o->npoints + n));
+		return false;
+	}
+	uint32_t base = (uint32_t)o->npoints;
+	float *dst = o->P + 3 * o->npoints;
+	for (uint64_t k = 0; k < n; k++) {
+		float c[3] = { P[k], P[n + k], P[2 * n + k] }, w[3];
+		sl_xform_point(w, gt->c2w, c);
+		if (!isfinite(w[0]) || !isfinite(w[1]) || !isfinite(w[2])) {
+			/*
+			 * Kept, so that indices stay grid-shaped, but marked (x is
+			 * NaN) until its micropolygons are left out below.
+			 */
+			w[0] = NAN;
+			w[1] = w[2] = 0;
+			gt->bad_points++;
+		}
+		memcpy(dst + 3 * k, w, sizeof(w));
+	}
+	uint32_t *q = o->quads + 4 * o->nquads;
+	uint32_t *obj = o->object + o->nquads;
+	uint64_t kept = 0;
+	for (uint32_t j = 0; j + 1 < nv; j++)
+		for (uint32_t i = 0; i + 1 < nu; i++) {
+			uint32_t a = j * nu + i;
+			uint32_t v[4] = { a, a + 1, a + nu + 1, a + nu };
+			bool good = true;
+			for (int c = 0; c < 4; c++)
+				good = good && !isnan(dst[3 * v[c]]);
+			if (!good)
+				continue;
+			for (int c = 0; c < 4; c++)
+				q[4 * kept + (uint64_t)c] = base + v[c];
+			obj[kept++] = prim->id;
+		}
+	for (uint64_t k = 0; k < n; k++)
+		if (isnan(dst[3 * k]))
+			dst[3 * k] = 0;
+	o->npoints += n;
+	o->nquads += kept;
+	o->ngrids++;
+	return true;
+}
+
+bool bake_shadow_geometry(const struct reyes_scene *scene, float rate, FILE *diag,
+			  struct bake_shadow_geometry *out)
+{
+	memset(out, 0, sizeof(*out));
+	if (!diag)
+		diag = stderr;
+	if (!(rate > 0) || !isfinite(rate)) {
+		fprintf(diag, "relight: error: the shadow rate must be a positive number (got %g)\n",
+			(double)rate);
+		return false;
+	}
+	struct gather gt = { .out = out, .diag = diag };
+	if (!sl_m44_inverse(gt.c2w, scene->opts.world_to_camera)) {
+		fprintf(diag, "relight: error: the camera transform cannot be inverted\n");
+		return false;
+	}
+	struct reyes_dice_opts o = {
+		.rate = rate,
+		.cull_to_view = false,
+		.casters_only = true,
+		.diag = diag,
+		.user = &gt,
+		.grid = on_grid,
+	};
+	bool ok = reyes_dice(scene, &o);
+	if (gt.bad_points)
+		fprintf(diag, "relight: warning: %llu shadow geometry points were not finite; "
+			"their micropolygons are left out\n", (unsigned long long)gt.bad_points);
+	if (!ok) {
+		bake_shadow_geometry_free(out);
+		return false;
+	}
+	/* give back what doubling left over (a failure keeps the larger block) */
+	void *p;
+	if (out->npoints && (p = realloc(out->P, (size_t)out->npoints * 3 * sizeof(float))))
+		out->P = p;
+	if (out->nquads && (p = realloc(out->quads, (size_t)out->nquads * 4 * sizeof(uint32_t))))
+		out->quads = p;
+	if (out->nquads && (p = realloc(out->object, (size_t)out->nquads * sizeof(uint32_t))))
+		out->object = p;
+	return true;
+}
+
+void bake_shadow_geometry_free(struct bake_shadow_geometry *g)
+{
+	free(g->P);
+	free(g->quads);
+	free(g->object);
+	memset(g, 0, sizeof(*g));
+}
