@@ -26,7 +26,7 @@
 struct chunk {
 	uint32_t id0, n;
 	float *values;       /* n rows x ncols, row-major */
-	uint32_t object, lightset;
+	uint32_t object, lightset, paramset;
 };
 
 /* One surface shader program and the samples shaded with it. */
@@ -42,6 +42,11 @@ struct group {
 	uint64_t rows;       /* kept rows, after compaction */
 	uint32_t first_id;   /* id of its first kept row */
 	cJSON *compress;     /* constants, aliases, half error (for the metadata) */
+	/* The values objects give the editable parameters, as JSON arrays of
+	 * {name, type, value}: a sample's "paramset" indexes them. */
+	const char **dyn;
+	size_t ndyn;
+	RL_VEC(char *) paramsets;
 };
 
 /* One finished bucket, copied. */
@@ -101,14 +106,16 @@ static struct group *new_group(struct bake *b, const struct reyes_shader *surf)
 		if (sl_program_find_param(prog, b->o->dynamic_surface[i]) >= 0)
 			dyn[nd++] = b->o->dynamic_surface[i];
 	struct sl_spec *spec = sl_specialize_ex(prog, dyn, nd, SL_SPEC_CACHE_PARAMS, b->diag);
-	free(dyn);
-	if (!spec)
+	if (!spec) {
+		free(dyn);
 		return NULL;
+	}
 	if (opacity_dynamic(spec)) {
 		fprintf(b->diag, "relight: error: surface shader '%s': its opacity (Oi) depends on "
 			"the lights or on an editable parameter, so what each pixel sees cannot be "
 			"baked\n", prog->name);
 		sl_spec_destroy(spec);
+		free(dyn);
 		return NULL;
 	}
 	for (uint32_t k = 0; k < spec->ncached; k++)
@@ -118,9 +125,12 @@ static struct group *new_group(struct bake *b, const struct reyes_shader *surf)
 				"hold cached strings yet\n", prog->name,
 				sl_ir_reg_name(prog, spec->cached[k]));
 			sl_spec_destroy(spec);
+			free(dyn);
 			return NULL;
 		}
 	struct group *g = rl_xcalloc(1, sizeof(*g));
+	g->dyn = dyn;
+	g->ndyn = nd;
 	g->prog = prog;
 	g->shader = prog->name;
 	g->spec = spec;
@@ -152,6 +162,10 @@ static void free_group(struct group *g)
 	rl_vec_free(g->chunks);
 	sl_spec_destroy(g->spec);
 	cJSON_Delete(g->compress);
+	free(g->dyn);
+	for (size_t i = 0; i < g->paramsets.len; i++)
+		free(g->paramsets.data[i]);
+	rl_vec_free(g->paramsets);
 	free(g->offset);
 	free(g->table);
 	free(g);
@@ -167,6 +181,46 @@ static uint32_t lightset_of(struct bake *b, const struct reyes_attrs *a)
 	}
 	rl_vec_push(b->lightsets, a);
 	return (uint32_t)b->lightsets.len - 1;
+}
+
+static cJSON *param_json(const struct reyes_param_value *pv)
+{
+	cJSON *p = cJSON_CreateObject();
+	cJSON_AddStringToObject(p, "name", pv->name);
+	cJSON_AddStringToObject(p, "type", sl_basetype_name(pv->type));
+	cJSON *v = cJSON_CreateArray();
+	for (uint32_t k = 0; k < pv->nvalues; k++) {
+		if (pv->type == SL_TYPE_STRING)
+			cJSON_AddItemToArray(v, cJSON_CreateString(pv->strings && pv->strings[k]
+								   ? pv->strings[k] : ""));
+		else
+			cJSON_AddItemToArray(v, cJSON_CreateNumber(pv->values[k]));
+	}
+	cJSON_AddItemToObject(p, "value", v);
+	return p;
+}
+
+/* The index of the values @surf gives @g's editable parameters (lock held). */
+static uint32_t paramset_of(struct group *g, const struct reyes_shader *surf)
+{
+	if (!g->ndyn)
+		return 0;
+	cJSON *a = cJSON_CreateArray();
+	for (size_t i = 0; i < g->ndyn; i++)
+		for (uint32_t k = 0; k < surf->nparams; k++)
+			if (!strcmp(surf->params[k].name, g->dyn[i]))
+				cJSON_AddItemToArray(a, param_json(&surf->params[k]));
+	char *text = cJSON_PrintUnformatted(a);
+	cJSON_Delete(a);
+	if (!text)
+		return 0;
+	for (size_t i = 0; i < g->paramsets.len; i++)
+		if (!strcmp(g->paramsets.data[i], text)) {
+			free(text);
+			return (uint32_t)i;
+		}
+	rl_vec_push(g->paramsets, text);
+	return (uint32_t)g->paramsets.len - 1;
 }
 
 /* ---- the renderer's hooks ---- */
@@ -201,11 +255,13 @@ static uint32_t hook_grid(void *user, const struct reyes_shader *surf,
 		fprintf(b->diag, "relight: error: more than %u shading samples: the scene is too "
 			"large to bake in one shot (use a coarser ShadingRate)\n", UINT32_MAX - 1);
 	uint32_t lightset = fits ? lightset_of(b, prim->attrs) : 0;
+	uint32_t paramset = fits ? paramset_of(g, surf) : 0;
 	pthread_mutex_unlock(&b->lock);
 	if (!fits)
 		return UINT32_MAX;
 
-	struct chunk c = { .id0 = (uint32_t)id0, .n = n, .object = prim->id, .lightset = lightset };
+	struct chunk c = { .id0 = (uint32_t)id0, .n = n, .object = prim->id, .lightset = lightset,
+			   .paramset = paramset };
 	c.values = rl_xmalloc(((size_t)n * g->ncols + 1) * sizeof(float));
 	const struct sl_program *cp = sl_exec_program(x);
 	uint32_t stride = sl_exec_stride(x);
@@ -273,22 +329,8 @@ static cJSON *matrix_json(const float m[16])
 static cJSON *params_json(const struct reyes_shader *sh)
 {
 	cJSON *ps = cJSON_CreateArray();
-	for (uint32_t i = 0; i < sh->nparams; i++) {
-		const struct reyes_param_value *pv = &sh->params[i];
-		cJSON *p = cJSON_CreateObject();
-		cJSON_AddStringToObject(p, "name", pv->name);
-		cJSON_AddStringToObject(p, "type", sl_basetype_name(pv->type));
-		cJSON *v = cJSON_CreateArray();
-		for (uint32_t k = 0; k < pv->nvalues; k++) {
-			if (pv->type == SL_TYPE_STRING)
-				cJSON_AddItemToArray(v, cJSON_CreateString(pv->strings && pv->strings[k]
-									   ? pv->strings[k] : ""));
-			else
-				cJSON_AddItemToArray(v, cJSON_CreateNumber(pv->values[k]));
-		}
-		cJSON_AddItemToObject(p, "value", v);
-		cJSON_AddItemToArray(ps, p);
-	}
+	for (uint32_t i = 0; i < sh->nparams; i++)
+		cJSON_AddItemToArray(ps, param_json(&sh->params[i]));
 	return ps;
 }
 
@@ -341,6 +383,11 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 		for (size_t k = 0; k < b->o->ndynamic; k++)
 			if (sl_program_find_param(p, b->o->dynamic_surface[k]) >= 0)
 				cJSON_AddItemToArray(dyn, cJSON_CreateString(b->o->dynamic_surface[k]));
+		if (g->ndyn) {
+			cJSON *sets = cJSON_AddArrayToObject(j, "param_sets");
+			for (size_t k = 0; k < g->paramsets.len; k++)
+				cJSON_AddItemToArray(sets, cJSON_Parse(g->paramsets.data[k]));
+		}
 		cJSON *ch = cJSON_AddArrayToObject(j, "cached");
 		for (uint32_t k = 0; k < g->spec->ncached; k++) {
 			int32_t reg = g->spec->cached[k];
@@ -871,7 +918,7 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 		struct shot_table *tb = &tabs[gi];
 		tb->name = g->table;
 		tb->nrows = g->rows;
-		tb->channels = rl_xcalloc(g->ncols + 2, sizeof(*tb->channels));
+		tb->channels = rl_xcalloc(g->ncols + 3, sizeof(*tb->channels));
 		g->compress = cJSON_CreateObject();
 		cJSON *consts = cJSON_AddObjectToObject(g->compress, "constants");
 		cJSON *aliases = cJSON_AddObjectToObject(g->compress, "aliases");
@@ -933,6 +980,15 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 								       SHOT_UINT, obj };
 		tb->channels[tb->nchannels++] = (struct shot_channel){ rl_xstrdup("lightset"),
 								       SHOT_UINT, set };
+		if (g->ndyn) {
+			uint32_t *ps = rl_xmalloc((g->rows + 1) * sizeof(uint32_t));
+			for (uint64_t r = 0; r < g->rows; r++) {
+				uint32_t id = src[g->first_id + r];
+				ps[r] = g->chunks.data[ii.chunk[id]].paramset;
+			}
+			tb->channels[tb->nchannels++] = (struct shot_channel){
+				rl_xstrdup("paramset"), SHOT_UINT, ps };
+		}
 	}
 	struct shot_table *pt = &tabs[ng];
 	pt->name = "pixels";

@@ -240,9 +240,18 @@ static bool shade_surface(struct resolver *r, const cJSON *s, const struct span 
 			ok = ok && col[at];
 		}
 	}
-	for (uint32_t c = 0; c < t->nchannels; c++)
+	const uint32_t *paramset = NULL;
+	for (uint32_t c = 0; c < t->nchannels; c++) {
 		if (!strcmp(t->channels[c].name, "lightset") && t->channels[c].type == SHOT_UINT)
 			lightset = t->channels[c].data;
+		if (!strcmp(t->channels[c].name, "paramset") && t->channels[c].type == SHOT_UINT)
+			paramset = t->channels[c].data;
+	}
+	/* the values objects give the editable parameters */
+	const cJSON *psets = cJSON_GetObjectItemCaseSensitive(s, "param_sets");
+	int npsets = paramset ? cJSON_GetArraySize(psets) : 0;
+	if (ok && paramset && npsets < 1)
+		ok = false;
 	if (ok && !lightset)
 		ok = false;
 	free(offset);
@@ -272,50 +281,60 @@ static bool shade_surface(struct resolver *r, const cJSON *s, const struct span 
 			memcpy(lm[nl], r->lights[k].to_camera, sizeof(lm[nl]));
 			nl++;
 		}
-		size_t sp = 0;
-		uint64_t row = nspans ? spans[0].lo : 0;
-		while (ok) {
-			uint32_t n = 0;
-			while (sp < nspans && n < BATCH) {
-				if (row >= spans[sp].hi) {
-					if (++sp < nspans)
-						row = spans[sp].lo;
-					continue;
+		for (int ps = 0; ok && ps < (npsets ? npsets : 1); ps++) {
+			if (npsets) {
+				sl_exec_reset_params(x);
+				if (!set_params(r, x, cJSON_GetArrayItem(psets, ps))) {
+					ok = false;
+					break;
 				}
-				if (lightset[row] == (uint32_t)set) {
-					for (uint32_t c = 0; c < stride; c++)
-						rec[(size_t)n * stride + c] = col[c][row];
-					rows[n++] = (uint32_t)row;
-				}
-				row++;
 			}
-			if (!n)
-				break;
-			r->shaded += n;
-			struct sl_lighthost lh;
-			sl_lighthost_init(&lh, lx, nl);
-			lh.light_shader_mats = (const float (*)[16])lm;
-			lh.owner = r->tex;
-			lh.host.texture = tex_texture;
-			lh.host.environment = tex_environment;
-			lh.host.shadow = tex_shadow;
-			static const char *const space_names[] = { "world" };
-			lh.space_names = space_names;
-			lh.space_mats = (const float (*)[16])&r->w2c;
-			lh.nspaces = 1;
-			if (!sl_spec_bind_cache(spec, x, n, rec, stride, NULL) ||
-			    !sl_exec_run(x, &lh.host)) {
-				ok = fail(r, "shading the samples of '%s' failed%s", prog->name, NULL);
-				break;
-			}
-			bool vary;
-			const float *ci = sl_exec_global(x, SL_GLOBAL_CI, &vary);
-			uint32_t st = sl_exec_stride(x);
-			for (uint32_t i = 0; i < n; i++)
-				for (int c = 0; c < 3; c++) {
-					float v = ci ? (vary ? ci[(size_t)c * st + i] : ci[c]) : 0.0f;
-					r->Ci[(id0 + rows[i]) * 3 + (uint64_t)c] = isfinite(v) ? v : 0.0f;
+			size_t sp = 0;
+			uint64_t row = nspans ? spans[0].lo : 0;
+			while (ok) {
+				uint32_t n = 0;
+				while (sp < nspans && n < BATCH) {
+					if (row >= spans[sp].hi) {
+						if (++sp < nspans)
+							row = spans[sp].lo;
+						continue;
+					}
+					if (lightset[row] == (uint32_t)set &&
+					    (!paramset || paramset[row] == (uint32_t)ps)) {
+						for (uint32_t c = 0; c < stride; c++)
+							rec[(size_t)n * stride + c] = col[c][row];
+						rows[n++] = (uint32_t)row;
+					}
+					row++;
 				}
+				if (!n)
+					break;
+				r->shaded += n;
+				struct sl_lighthost lh;
+				sl_lighthost_init(&lh, lx, nl);
+				lh.light_shader_mats = (const float (*)[16])lm;
+				lh.owner = r->tex;
+				lh.host.texture = tex_texture;
+				lh.host.environment = tex_environment;
+				lh.host.shadow = tex_shadow;
+				static const char *const space_names[] = { "world" };
+				lh.space_names = space_names;
+				lh.space_mats = (const float (*)[16])&r->w2c;
+				lh.nspaces = 1;
+				if (!sl_spec_bind_cache(spec, x, n, rec, stride, NULL) ||
+				    !sl_exec_run(x, &lh.host)) {
+					ok = fail(r, "shading the samples of '%s' failed%s", prog->name, NULL);
+					break;
+				}
+				bool vary;
+				const float *ci = sl_exec_global(x, SL_GLOBAL_CI, &vary);
+				uint32_t st = sl_exec_stride(x);
+				for (uint32_t i = 0; i < n; i++)
+					for (int c = 0; c < 3; c++) {
+						float v = ci ? (vary ? ci[(size_t)c * st + i] : ci[c]) : 0.0f;
+						r->Ci[(id0 + rows[i]) * 3 + (uint64_t)c] = isfinite(v) ? v : 0.0f;
+					}
+			}
 		}
 	}
 	free(rec);

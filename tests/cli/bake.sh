@@ -208,6 +208,35 @@ d = json.load(open(sys.argv[1]))
 assert d["shadow_quads"] == 0 and "shadow.quads" not in d["bytes"], d
 ' "$work/stdout" || fail "a shot without shadow-casting lights has shadow geometry"
 
+# Editable surface parameters keep each object's own values: two spheres
+# whose plastic has different Kd and Ks, both marked editable.
+cat >"$work/kd.rib" <<'RIB'
+Format 40 30 1
+PixelSamples 2 2
+Display "kd.exr" "file" "rgba"
+WorldBegin
+  LightSource "distantlight" 1
+  AttributeBegin
+    Surface "plastic" "Kd" 0.2 "Ks" 0.1
+    Translate -1 0 6
+    Sphere 1.2 -1.2 1.2 360
+  AttributeEnd
+  AttributeBegin
+    Surface "plastic" "Kd" 0.9
+    Translate 1.2 0 6
+    Sphere 1.2 -1.2 1.2 360
+  AttributeEnd
+WorldEnd
+RIB
+run "per-object editable values" bash -c "cd '$work' && '$relight' render -q -o kdref.exr kd.rib && '$relight' bake -q --dynamic-surface Kd,Ks -o kd.shot.exr kd.rib && '$relight' preview -q --cpu -o kdprev.exr kd.shot.exr && '$relight' diff --json kdref.exr kdprev.exr"
+expect_status 0
+checks=$((checks + 1))
+python3 -c '
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["mean_pct"] < 0.1 and d["max_pct"] < 1.0, d
+' "$work/stdout" || fail "editable parameters lost their per-object values"
+
 # Half channels: the default stores some channels as half, --full-float none;
 # both resolve within the tolerance above.
 run "full float" bash -c "cd '$work' && '$relight' bake -q --full-float -o ff.shot.exr motion.rib && '$relight' info --json ff.shot.exr"
