@@ -35,7 +35,11 @@ struct group {
 	const char *shader;  /* the shader's name */
 	struct sl_spec *spec;
 	char *table;         /* "samples.NAME" */
-	uint32_t ncols;      /* floats per sample */
+	uint32_t ncols;      /* floats per sample: the cached values, then (derivative
+				stencils) their steps along u and v and du, dv */
+	uint32_t nbase;      /* floats of the cached values */
+	char (*colname)[32]; /* per float: its channel's name */
+	uint8_t *coltype;    /* per float: its value's enum sl_basetype */
 	uint32_t *offset;    /* per cached value, its first float (sl_spec_cache_layout),
 				then ncols */
 	RL_VEC(struct chunk) chunks;
@@ -69,6 +73,7 @@ struct bake {
 	uint64_t next_id;
 	bool failed;
 	cJSON *tiles_json;   /* the layout's tiles (for the metadata) */
+	bool light_derivatives; /* some light takes derivatives of Ps */
 	struct bake_shadow_geometry shadow;  /* empty when no light casts shadows */
 	RL_VEC(uint32_t) casters;            /* lights that cast shadows */
 	float shadow_rate;
@@ -105,7 +110,9 @@ static struct group *new_group(struct bake *b, const struct reyes_shader *surf)
 	for (size_t i = 0; i < b->o->ndynamic; i++)
 		if (sl_program_find_param(prog, b->o->dynamic_surface[i]) >= 0)
 			dyn[nd++] = b->o->dynamic_surface[i];
-	struct sl_spec *spec = sl_specialize_ex(prog, dyn, nd, SL_SPEC_CACHE_PARAMS, b->diag);
+	unsigned flags = SL_SPEC_CACHE_PARAMS |
+			 (b->light_derivatives ? SL_SPEC_LIGHT_DERIVATIVES : 0);
+	struct sl_spec *spec = sl_specialize_ex(prog, dyn, nd, flags, b->diag);
 	if (!spec) {
 		free(dyn);
 		return NULL;
@@ -135,8 +142,37 @@ static struct group *new_group(struct bake *b, const struct reyes_shader *surf)
 	g->shader = prog->name;
 	g->spec = spec;
 	g->offset = rl_xcalloc(spec->ncached + 1, sizeof(uint32_t));
-	g->ncols = sl_spec_cache_layout(spec, g->offset);
-	g->offset[spec->ncached] = g->ncols;
+	g->nbase = sl_spec_cache_layout(spec, g->offset);
+	g->offset[spec->ncached] = g->nbase;
+	/* Derivative stencils (sl_exec_set_stencil): the steps of the values
+	 * the dynamic part takes derivatives through, and the grid's du, dv. */
+	uint32_t extra = 0;
+	for (uint32_t k = 0; spec->needs_stencil && k < spec->ncached; k++)
+		if (spec->cached_deriv[k])
+			extra += 2 * (g->offset[k + 1] - g->offset[k]);
+	g->ncols = g->nbase + extra + (spec->needs_stencil ? 2 : 0);
+	g->colname = rl_xcalloc(g->ncols + 1, sizeof(*g->colname));
+	g->coltype = rl_xcalloc(g->ncols + 1, 1);
+	uint32_t col = 0;
+	for (uint32_t k = 0; k < spec->ncached; k++)
+		for (uint32_t f = 0; f < g->offset[k + 1] - g->offset[k]; f++, col++) {
+			snprintf(g->colname[col], sizeof(g->colname[col]), "c%03u.%02u", k, f);
+			g->coltype[col] = (uint8_t)prog->regs[spec->cached[k]].type;
+		}
+	for (uint32_t k = 0; spec->needs_stencil && k < spec->ncached; k++) {
+		uint32_t nc = g->offset[k + 1] - g->offset[k];
+		for (uint32_t f = 0; spec->cached_deriv[k] && f < 2 * nc; f++, col++) {
+			snprintf(g->colname[col], sizeof(g->colname[col]), "%c%03u.%02u",
+				 f < nc ? 'u' : 'v', k, f % nc);
+			g->coltype[col] = (uint8_t)prog->regs[spec->cached[k]].type;
+		}
+	}
+	if (spec->needs_stencil) {
+		snprintf(g->colname[col], sizeof(g->colname[col]), "du");
+		g->coltype[col++] = SL_TYPE_FLOAT;
+		snprintf(g->colname[col], sizeof(g->colname[col]), "dv");
+		g->coltype[col++] = SL_TYPE_FLOAT;
+	}
 	/* table names are unique: a second program of the same name gets a number */
 	size_t n = strlen(prog->name) + 32;
 	g->table = rl_xmalloc(n);
@@ -162,6 +198,8 @@ static void free_group(struct group *g)
 	rl_vec_free(g->chunks);
 	sl_spec_destroy(g->spec);
 	cJSON_Delete(g->compress);
+	free(g->colname);
+	free(g->coltype);
 	free(g->dyn);
 	for (size_t i = 0; i < g->paramsets.len; i++)
 		free(g->paramsets.data[i]);
@@ -275,6 +313,36 @@ static uint32_t hook_grid(void *user, const struct reyes_shader *surf,
 				c.values[(size_t)i * g->ncols + col] = isfinite(v) ? v : 0.0f;
 			}
 	}
+	if (g->spec->needs_stencil) {
+		float *du = rl_xmalloc(((size_t)n + 1) * sizeof(float));
+		float *dv = rl_xmalloc(((size_t)n + 1) * sizeof(float));
+		uint32_t col = g->nbase;
+		for (uint32_t k = 0; k < g->spec->ncached; k++) {
+			if (!g->spec->cached_deriv[k])
+				continue;
+			uint32_t nc = g->offset[k + 1] - g->offset[k];
+			for (uint32_t f = 0; f < nc; f++) {
+				if (!sl_exec_reg_delta(x, g->spec->cached[k], (int)f, du, dv)) {
+					memset(du, 0, n * sizeof(float));
+					memset(dv, 0, n * sizeof(float));
+				}
+				for (uint32_t i = 0; i < n; i++) {
+					float *row = c.values + (size_t)i * g->ncols;
+					row[col + f] = isfinite(du[i]) ? du[i] : 0.0f;
+					row[col + nc + f] = isfinite(dv[i]) ? dv[i] : 0.0f;
+				}
+			}
+			col += 2 * nc;
+		}
+		float hu, hv;
+		sl_exec_grid_steps(x, &hu, &hv);
+		for (uint32_t i = 0; i < n; i++) {
+			c.values[(size_t)i * g->ncols + col] = isfinite(hu) ? hu : 0.0f;
+			c.values[(size_t)i * g->ncols + col + 1] = isfinite(hv) ? hv : 0.0f;
+		}
+		free(du);
+		free(dv);
+	}
 	pthread_mutex_lock(&b->lock);
 	rl_vec_push(g->chunks, c);
 	pthread_mutex_unlock(&b->lock);
@@ -347,6 +415,7 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 	cJSON_AddItemToArray(px, cJSON_CreateNumber(so->xsamples ? so->xsamples : 1));
 	cJSON_AddItemToArray(px, cJSON_CreateNumber(so->ysamples ? so->ysamples : 1));
 	cJSON_AddItemToObject(root, "world_to_camera", matrix_json(so->world_to_camera));
+	cJSON_AddBoolToObject(root, "light_derivatives", b->light_derivatives);
 
 	cJSON *lights = cJSON_AddArrayToObject(root, "lights");
 	for (uint32_t i = 0; i < sc->nlights; i++) {
@@ -924,12 +993,8 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 		cJSON *aliases = cJSON_AddObjectToObject(g->compress, "aliases");
 		double half_err = 0.0;
 		st->channels_dynamic += g->ncols;
-		uint32_t k = 0;
 		for (uint32_t col = 0; col < g->ncols; col++) {
-			while (col >= g->offset[k + 1])
-				k++;
-			char name[64];
-			snprintf(name, sizeof(name), "c%03u.%02u", k, col - g->offset[k]);
+			const char *name = g->colname[col];
 			float *v = rl_xmalloc((g->rows + 1) * sizeof(float));
 			for (uint64_t r = 0; r < g->rows; r++) {
 				uint32_t id = src[g->first_id + r];
@@ -959,7 +1024,7 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 			struct shot_channel *c = &tb->channels[tb->nchannels++];
 			c->name = rl_xstrdup(name);
 			c->data = v;
-			enum sl_basetype type = g->prog->regs[g->spec->cached[k]].type;
+			enum sl_basetype type = (enum sl_basetype)g->coltype[col];
 			c->type = !b->o->full_float && store_as_half(type, v, g->rows, &half_err)
 				  ? SHOT_HALF : SHOT_FLOAT;
 			if (c->type == SHOT_HALF)
@@ -1119,6 +1184,9 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 	memset(st, 0, sizeof(*st));
 	struct bake b = { .scene = scene, .o = opts, .diag = opts->diag ? opts->diag : stderr };
 	pthread_mutex_init(&b.lock, NULL);
+	for (uint32_t i = 0; i < scene->nlights; i++)
+		if (sl_program_takes_derivatives(scene->lights[i].shader.prog))
+			b.light_derivatives = true;
 	struct reyes_bake_hooks hooks = {
 		.user = &b, .program = hook_program, .grid = hook_grid, .bucket = hook_bucket,
 	};

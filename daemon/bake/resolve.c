@@ -220,7 +220,9 @@ static bool shade_surface(struct resolver *r, const cJSON *s, const struct span 
 	cJSON_ArrayForEach(d, dyn)
 		if (cJSON_IsString(d) && nd < 256)
 			names[nd++] = d->valuestring;
-	struct sl_spec *spec = sl_specialize_ex(prog, names, nd, SL_SPEC_CACHE_PARAMS, r->diag);
+	const cJSON *ld = cJSON_GetObjectItemCaseSensitive(r->meta, "light_derivatives");
+	unsigned flags = SL_SPEC_CACHE_PARAMS | (cJSON_IsTrue(ld) ? SL_SPEC_LIGHT_DERIVATIVES : 0);
+	struct sl_spec *spec = sl_specialize_ex(prog, names, nd, flags, r->diag);
 	bool ok = spec != NULL;
 	uint32_t stride = ok ? sl_spec_cache_layout(spec, NULL) : 0;
 	/* each float of a sample's record: its channel */
@@ -260,6 +262,54 @@ static bool shade_surface(struct resolver *r, const cJSON *s, const struct span 
 		     prog->name);
 	struct sl_exec *x = ok ? sl_exec_create(spec->dynamic, BATCH) : NULL;
 	ok = ok && x;
+	/*
+	 * Derivative stencils: each sample also runs moved one grid step along
+	 * u and along v (the cached steps added to the values derivatives go
+	 * through), in two more blocks of the batch.
+	 */
+	bool stencil = ok && spec->needs_stencil;
+	uint32_t cap = stencil ? BATCH / 3 : BATCH;
+	uint32_t nmoved = 0;
+	uint32_t *moved_at = rl_xcalloc(stride + 1, sizeof(uint32_t));
+	const float **moved_u = rl_xcalloc(stride + 1, sizeof(float *));
+	const float **moved_v = rl_xcalloc(stride + 1, sizeof(float *));
+	const float *step_u = NULL, *step_v = NULL;
+	float *owned_du = NULL, *owned_dv = NULL;
+	RL_VEC(float *) owned_steps = { 0 };
+	if (stencil) {
+		uint32_t *off = rl_xcalloc(spec->ncached + 1, sizeof(uint32_t));
+		sl_spec_cache_layout(spec, off);
+		for (uint32_t k = 0; ok && k < spec->ncached; k++) {
+			if (!spec->cached_deriv[k])
+				continue;
+			uint32_t end = k + 1 < spec->ncached ? off[k + 1] : stride;
+			for (uint32_t at = off[k]; ok && at < end; at++) {
+				char un[64], vn[64];
+				snprintf(un, sizeof(un), "u%03u.%02u", k, at - off[k]);
+				snprintf(vn, sizeof(vn), "v%03u.%02u", k, at - off[k]);
+				float *ou = NULL, *ov = NULL;
+				moved_at[nmoved] = at;
+				moved_u[nmoved] = channel(r, t, chans, un, &ou, 0);
+				moved_v[nmoved] = channel(r, t, chans, vn, &ov, 0);
+				if (ou)
+					rl_vec_push(owned_steps, ou);
+				if (ov)
+					rl_vec_push(owned_steps, ov);
+				ok = moved_u[nmoved] && moved_v[nmoved];
+				nmoved++;
+			}
+		}
+		free(off);
+		step_u = ok ? channel(r, t, chans, "du", &owned_du, 0) : NULL;
+		step_v = ok ? channel(r, t, chans, "dv", &owned_dv, 0) : NULL;
+		if (ok && (!step_u || !step_v))
+			ok = false;
+		if (!ok)
+			fail(r, "the table '%s' lacks the derivative steps shader '%s' needs (bake "
+			     "again)%s", table, prog->name);
+	}
+	float *sdu = rl_xmalloc(((size_t)cap + 1) * sizeof(float));
+	float *sdv = rl_xmalloc(((size_t)cap + 1) * sizeof(float));
 	float *rec = rl_xmalloc(((size_t)BATCH * stride + 1) * sizeof(float));
 	uint32_t *rows = rl_xmalloc(BATCH * sizeof(uint32_t));
 	const cJSON *sets = cJSON_GetObjectItemCaseSensitive(r->meta, "lightsets");
@@ -293,7 +343,7 @@ static bool shade_surface(struct resolver *r, const cJSON *s, const struct span 
 			uint64_t row = nspans ? spans[0].lo : 0;
 			while (ok) {
 				uint32_t n = 0;
-				while (sp < nspans && n < BATCH) {
+				while (sp < nspans && n < cap) {
 					if (row >= spans[sp].hi) {
 						if (++sp < nspans)
 							row = spans[sp].lo;
@@ -321,7 +371,24 @@ static bool shade_surface(struct resolver *r, const cJSON *s, const struct span 
 				lh.space_names = space_names;
 				lh.space_mats = (const float (*)[16])&r->w2c;
 				lh.nspaces = 1;
-				if (!sl_spec_bind_cache(spec, x, n, rec, stride, NULL) ||
+				if (stencil) {
+					for (uint32_t i = 0; i < n; i++) {
+						float *base = rec + (size_t)i * stride;
+						float *mu = rec + (size_t)(n + i) * stride;
+						float *mv = rec + (size_t)(2 * n + i) * stride;
+						memcpy(mu, base, stride * sizeof(float));
+						memcpy(mv, base, stride * sizeof(float));
+						for (uint32_t j = 0; j < nmoved; j++) {
+							mu[moved_at[j]] += moved_u[j][rows[i]];
+							mv[moved_at[j]] += moved_v[j][rows[i]];
+						}
+						sdu[i] = step_u[rows[i]];
+						sdv[i] = step_v[rows[i]];
+					}
+				}
+				if (!sl_spec_bind_cache(spec, x, stencil ? 3 * n : n, rec, stride,
+							NULL) ||
+				    (stencil && !sl_exec_set_stencil(x, n, sdu, sdv)) ||
 				    !sl_exec_run(x, &lh.host)) {
 					ok = fail(r, "shading the samples of '%s' failed%s", prog->name, NULL);
 					break;
@@ -338,6 +405,16 @@ static bool shade_surface(struct resolver *r, const cJSON *s, const struct span 
 		}
 	}
 	free(rec);
+	free(sdu);
+	free(sdv);
+	free(moved_at);
+	free(moved_u);
+	free(moved_v);
+	free(owned_du);
+	free(owned_dv);
+	for (size_t i = 0; i < owned_steps.len; i++)
+		free(owned_steps.data[i]);
+	rl_vec_free(owned_steps);
 	free(rows);
 	for (uint32_t c = 0; c < stride; c++)
 		free(owned[c]);

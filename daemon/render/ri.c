@@ -1677,12 +1677,15 @@ static void build_scene(struct ri *ri, struct reyes_scene *sc)
 		if (ri->opt.quantize_float)
 			ds[i].half = false;
 	if (ri->opts->output_override) {
-		uint32_t k = 0;
+		/* the first image display; a frame of depth maps only (a shadow
+		 * pass) keeps its names, so the maps its lights read exist */
+		uint32_t k = nd;
 		for (uint32_t i = nd; i-- > 0;)
 			if (strcmp(ds[i].type, "zfile") != 0 && strcmp(ds[i].type, "shadow") != 0 &&
 			    strcmp(ds[i].mode, "z") != 0)
 				k = i;
-		ds[k].name = rl_arena_strdup(a, ri->opts->output_override);
+		if (k < nd)
+			ds[k].name = rl_arena_strdup(a, ri->opts->output_override);
 	}
 	o->displays = ds;
 	o->ndisplays = nd;

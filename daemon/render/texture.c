@@ -834,8 +834,19 @@ bool reyes_tex_shadow(struct reyes_texsys *ts, const struct sl_tex_lookup *q)
 			double ds = clamp_region((smax - smin) * sw + sb);
 			double dt = clamp_region((tmax - tmin) * tw + tb);
 			int nu = ds > 0.0 || dt > 0.0 ? grid : 1;
-			uint32_t seed = sl_hash_mix(i * 0x9e3779b9u ^ sl_hash_mix(float_bits(sc) ^
-								    sl_hash_mix(float_bits(tc))));
+			/* Jitter from where the lookup lands, not from the point's
+			 * place in the batch: the same point shadows the same way
+			 * in a grid of the renderer and among a shot's samples. */
+			uint32_t seed;
+			if (q->center)
+				seed = sl_hash_mix(
+					sl_hash_mix(float_bits(q->center[i])) ^
+					sl_hash_mix(float_bits(q->center[q->stride + i]) + 0x9e3779b9u) ^
+					sl_hash_mix(float_bits(q->center[2 * (size_t)q->stride + i]) +
+						    0x7f4a7c15u));
+			else
+				seed = sl_hash_mix(sl_hash_mix(float_bits((float)sc)) ^
+						   sl_hash_mix(float_bits((float)tc) + 0x9e3779b9u));
 			int shadowed = 0;
 			for (int v = 0; v < nu; v++) {
 				for (int u = 0; u < nu; u++) {

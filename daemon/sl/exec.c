@@ -895,6 +895,8 @@ void sl_exec_destroy(struct sl_exec *x)
 	free(x->param_set);
 	free(x->warned);
 	free(x->scratch);
+	free(x->stencil_du);
+	free(x->stencil_dv);
 	rl_arena_destroy(x->strings);
 	free(x);
 }
@@ -917,6 +919,42 @@ bool sl_exec_set_grid(struct sl_exec *x, uint32_t nu, uint32_t nv)
 	x->nv = nv;
 	x->n = nu * nv;
 	return true;
+}
+
+bool sl_exec_set_stencil(struct sl_exec *x, uint32_t m, const float *du, const float *dv)
+{
+	if (!x)
+		return false;
+	if (m == 0) {
+		x->stencil_m = 0;
+		return true;
+	}
+	if (m > x->maxn / 3 || !du || !dv) {
+		fprintf(stderr, "%s: error: derivative stencils of %u samples need %llu points, "
+			"the executor has %u\n", prog_label(x->prog), m, 3ull * m, x->maxn);
+		return false;
+	}
+	for (uint32_t i = 0; i < m; i++)
+		if (!isfinite(du[i]) || !isfinite(dv[i])) {
+			fprintf(stderr, "%s: error: derivative stencil %u: the step along %s is "
+				"not finite\n", prog_label(x->prog), i, isfinite(du[i]) ? "v" : "u");
+			return false;
+		}
+	if (!x->stencil_du) {
+		size_t cap = x->maxn / 3;
+		x->stencil_du = rl_xmalloc(cap * sizeof(float));
+		x->stencil_dv = rl_xmalloc(cap * sizeof(float));
+	}
+	/* The caller may hand back this executor's own steps. */
+	memmove(x->stencil_du, du, m * sizeof(float));
+	memmove(x->stencil_dv, dv, m * sizeof(float));
+	x->stencil_m = m;
+	return true;
+}
+
+uint32_t sl_exec_stencil(const struct sl_exec *x)
+{
+	return x ? x->stencil_m : 0;
 }
 
 float *sl_exec_global(struct sl_exec *x, enum sl_global g, bool *varying)
@@ -2229,6 +2267,12 @@ bool sl_exec_run(struct sl_exec *x, const struct sl_host *host)
 			prog_label(prog));
 		return false;
 	}
+	if (x->stencil_m && (x->nv != 1 || x->nu != 3 * x->stencil_m)) {
+		fprintf(stderr, "%s: error: derivative stencils of %u samples run on a %u x 1 "
+			"grid, not %u x %u\n", prog_label(prog), x->stencil_m, 3 * x->stencil_m,
+			x->nu, x->nv);
+		return false;
+	}
 	p->running = true;
 	x->host = host;
 	x->failed = false;
@@ -2326,8 +2370,44 @@ static void deriv_line(const float *f, size_t fs, uint32_t m, float h, float *d,
 	d[l * ds] = fdiv(3.0f * f[l * fs] - 4.0f * f[(l - 1) * fs] + f[(l - 2) * fs], h2);
 }
 
+/*
+ * One derivative within the stencils of @m samples: d[i] = (f[off + i] -
+ * f[i]) / h[i], or the plain difference when @h is NULL; the moved points
+ * [m, 3m) take their sample's value (so a second derivative is 0).
+ */
+static void stencil_line(const float *f, uint32_t m, uint32_t off, const float *h, float *d)
+{
+	if (h)
+		for (uint32_t i = 0; i < m; i++)
+			d[i] = fdiv(f[off + i] - f[i], h[i]);
+	else
+		for (uint32_t i = 0; i < m; i++)
+			d[i] = fin(f[off + i] - f[i]);
+	memcpy(d + m, d, m * sizeof(float));
+	memcpy(d + 2 * (size_t)m, d, m * sizeof(float));
+}
+
+/* Derivatives (@divide) or differences within the stencils. */
+static void stencil_deriv(struct sl_exec *x, const float *f, float *du, float *dv, bool divide)
+{
+	uint32_t m = x->stencil_m;
+	if (f == du || f == dv) {
+		float *copy = sl_exec_scratch(x, 3 * (size_t)m);
+		memcpy(copy, f, 3 * (size_t)m * sizeof(float));
+		f = copy;
+	}
+	if (du)
+		stencil_line(f, m, m, divide ? x->stencil_du : NULL, du);
+	if (dv)
+		stencil_line(f, m, 2 * m, divide ? x->stencil_dv : NULL, dv);
+}
+
 void sl_exec_deriv(struct sl_exec *x, const float *f, float *dfdu, float *dfdv)
 {
+	if (x->stencil_m) {
+		stencil_deriv(x, f, dfdu, dfdv, true);
+		return;
+	}
 	uint32_t nu = x->nu, nv = x->nv;
 	if (f == dfdu || f == dfdv) {
 		float *copy = sl_exec_scratch(x, x->n);
@@ -2344,6 +2424,56 @@ void sl_exec_deriv(struct sl_exec *x, const float *f, float *dfdu, float *dfdv)
 		for (uint32_t u = 0; u < nu; u++)
 			deriv_line(f + u, nu, nv, h, dfdv + u, nu);
 	}
+}
+
+void sl_exec_deriv_steps(struct sl_exec *x, const float *f, float *du, float *dv, float *hu,
+			 float *hv)
+{
+	if (x->stencil_m) {
+		/* the differences themselves: Du(f) du[i] = f[m + i] - f[i] exactly */
+		stencil_deriv(x, f, du, dv, false);
+		*hu = *hv = 1.0f;
+		return;
+	}
+	sl_exec_deriv(x, f, du, dv);
+	*hu = sl_exec_du(x);
+	*hv = sl_exec_dv(x);
+}
+
+void sl_exec_delta(struct sl_exec *x, const float *f, float *deltau, float *deltav)
+{
+	float hu, hv;
+	sl_exec_deriv_steps(x, f, deltau, deltav, &hu, &hv);
+	if (x->stencil_m)
+		return;
+	for (uint32_t i = 0; deltau && i < x->n; i++)
+		deltau[i] = fin(deltau[i] * hu);
+	for (uint32_t i = 0; deltav && i < x->n; i++)
+		deltav[i] = fin(deltav[i] * hv);
+}
+
+bool sl_exec_reg_delta(struct sl_exec *x, int32_t reg, int c, float *deltau, float *deltav)
+{
+	const struct sl_program *p = x->prog;
+	if (reg < 0 || (uint32_t)reg >= p->nregs || !x->data[reg] || c < 0)
+		return false;
+	const struct sl_reg *r = &p->regs[reg];
+	uint32_t ncomp = sl_type_ncomp(r->type) * (r->arraylen ? r->arraylen : 1);
+	if ((uint32_t)c >= ncomp)
+		return false;
+	if (!r->varying) {
+		memset(deltau, 0, x->n * sizeof(float));
+		memset(deltav, 0, x->n * sizeof(float));
+		return true;
+	}
+	sl_exec_delta(x, x->data[reg] + (size_t)c * x->stride, deltau, deltav);
+	return true;
+}
+
+void sl_exec_grid_steps(const struct sl_exec *x, float *du, float *dv)
+{
+	*du = sl_exec_du(x);
+	*dv = sl_exec_dv(x);
 }
 
 bool sl_exec_space(struct sl_exec *x, const struct sl_insn *in, const char *name, float m[16])

@@ -85,6 +85,13 @@ struct sl_tex_lookup {
 	const float *s[4], *t[4];
 	const float *dir[4];
 	const float *pos[4];
+	/*
+	 * shadow: the lookup point itself (3 planes, stride) when the corners
+	 * come from its derivatives, else NULL. Stochastic filters seed from
+	 * it: the same point gives the same answer whatever grid or batch it
+	 * is shaded in (its corners may differ in the last bits).
+	 */
+	const float *center;
 	/* Options ("blur", ...); defaults in brackets. */
 	float blur, sblur, tblur;   /* [0] */
 	float width, swidth, twidth; /* [1] multiplies the filter region */
@@ -146,6 +153,39 @@ void sl_exec_reset_params(struct sl_exec *x);
  * the program does not have.
  */
 bool sl_exec_hold(struct sl_exec *x, int32_t reg, bool hold);
+
+/**
+ * Derivative stencils, for samples that do not lie on a grid (a baked shot's
+ * shading samples, run in any order). With @m > 0 the next runs of @x are
+ * over 3 m points laid out as three blocks: the samples [0, m), the same
+ * samples moved one grid step along u [m, 2m) and one step along v [2m, 3m)
+ * (the host writes the moved inputs: value + Du(value) du, value + Dv(value)
+ * dv, as cached at bake time). Every derivative then is a one-sided
+ * difference within a sample's stencil: Du(f) at i = (f[m + i] - f[i]) /
+ * du[i], Dv(f) = (f[2m + i] - f[i]) / dv[i], the moved points taking their
+ * sample's values, so area(), calculatenormal() and texture filter regions
+ * see the grid's step of the sample: exact where the derivative's operand
+ * is linear in the moved inputs (shadow(map, Ps) after a transform).
+ * @du and @dv are m spacings each (du, dv of the grid each sample came
+ * from); they are copied. The grid must be 3m x 1 (sl_exec_set_grid) and
+ * lights run through sl_lighthost get the same stencil. @m = 0 returns to
+ * grid derivatives. False if 3m exceeds the executor's points or a spacing
+ * is not finite.
+ */
+bool sl_exec_set_stencil(struct sl_exec *x, uint32_t m, const float *du, const float *dv);
+/**
+ * After a run over a grid: the change of component @c of register @reg (c
+ * counts across array elements as in the register layout) over one grid
+ * step along u and along v, Du(f) du and Dv(f) dv, per point (n floats
+ * each), as the derivative-taking built-ins see it: what a bake stores for
+ * derivative stencils. Zeros for a uniform register. False for a string or
+ * an unknown register or component.
+ */
+bool sl_exec_reg_delta(struct sl_exec *x, int32_t reg, int c, float *deltau, float *deltav);
+/** The grid steps du and dv of the last run (1 / (n - 1) when the program has no du, dv). */
+void sl_exec_grid_steps(const struct sl_exec *x, float *du, float *dv);
+/** The stencil's m (0: derivatives over the grid). */
+uint32_t sl_exec_stencil(const struct sl_exec *x);
 
 /** Which shader a message-passing call reaches: surface(), displacement(), ... */
 enum sl_peer { SL_PEER_SURFACE, SL_PEER_DISPLACEMENT, SL_PEER_ATMOSPHERE, SL_PEER_COUNT };

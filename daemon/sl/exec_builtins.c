@@ -186,6 +186,24 @@ static void deriv_of(struct sl_exec *x, int32_t r, int c, float *du, float *dv)
 	sl_exec_deriv(x, x->data[r] + (size_t)c * x->stride, du, dv);
 }
 
+/*
+ * The same for turning into changes over one step: Du(v) du is du[i] * *hu
+ * (sl_exec_deriv_steps); zero for uniform values.
+ */
+static void deriv_steps_of(struct sl_exec *x, int32_t r, int c, float *du, float *dv, float *hu,
+			   float *hv)
+{
+	*hu = *hv = 1.0f;
+	if (r < 0 || !sl_x_varying(x, r)) {
+		memset(du, 0, x->n * sizeof(float));
+		memset(dv, 0, x->n * sizeof(float));
+		return;
+	}
+	if (rncomp(x, r) == 1)
+		c = 0;
+	sl_exec_deriv_steps(x, x->data[r] + (size_t)c * x->stride, du, dv, hu, hv);
+}
+
 static bool need_args(struct sl_exec *x, const struct sl_insn *in, int n)
 {
 	if (in->nargs >= n)
@@ -307,13 +325,12 @@ static void do_filterstep(struct sl_exec *x, const struct sl_insn *in)
 	}
 	if (!(width >= 0.0f))
 		width = 0.0f;
-	float *dsu = NULL, *dsv = NULL;
+	float *dsu = NULL, *dsv = NULL, hu = 1.0f, hv = 1.0f;
 	if (nnum < 3) {
 		dsu = sl_exec_scratch(x, x->n);
 		dsv = sl_exec_scratch(x, x->n);
-		deriv_of(x, a[1], 0, dsu, dsv);
+		deriv_steps_of(x, a[1], 0, dsu, dsv, &hu, &hv);
 	}
-	float hu = sl_exec_du(x), hv = sl_exec_dv(x);
 	SL_X_EACH(x, d, i) {
 		float edge = getf(x, a[0], i), s1 = getf(x, a[1], i), lo, hi;
 		if (nnum >= 3) {
@@ -846,9 +863,14 @@ static void do_surface_deriv(struct sl_exec *x, const struct sl_insn *in, int id
 		return;
 	uint32_t n = x->n;
 	float *pu = sl_exec_scratch(x, 3 * (size_t)n), *pv = sl_exec_scratch(x, 3 * (size_t)n);
-	for (int c = 0; c < 3; c++)
-		deriv_of(x, in->args[0], c, pu + (size_t)c * n, pv + (size_t)c * n);
-	float hu = sl_exec_du(x), hv = sl_exec_dv(x);
+	float hu = 1.0f, hv = 1.0f;
+	for (int c = 0; c < 3; c++) {
+		float *cu = pu + (size_t)c * n, *cv = pv + (size_t)c * n;
+		if (id == SL_BI_AREA)
+			deriv_steps_of(x, in->args[0], c, cu, cv, &hu, &hv);
+		else
+			deriv_of(x, in->args[0], c, cu, cv);
+	}
 	uint32_t i0 = first_active(x);
 	SL_X_EACH(x, d, i) {
 		uint32_t j = src_index(x, d, i, i0);
@@ -988,9 +1010,8 @@ static void tex_region(struct sl_exec *x, int32_t r, int c, float *const out[4])
 	static const float sv[4] = { -0.5f, -0.5f, 0.5f, 0.5f };
 	uint32_t n = x->n;
 	const float *v = plane_of(x, r, c);
-	float *du = sl_exec_scratch(x, n), *dv = sl_exec_scratch(x, n);
-	deriv_of(x, r, c, du, dv);
-	float hu = sl_exec_du(x), hv = sl_exec_dv(x);
+	float *du = sl_exec_scratch(x, n), *dv = sl_exec_scratch(x, n), hu, hv;
+	deriv_steps_of(x, r, c, du, dv, &hu, &hv);
 	for (int k = 0; k < 4; k++)
 		for (uint32_t i = 0; i < n; i++)
 			out[k][i] = sl_finite(v[i] + su[k] * du[i] * hu + sv[k] * dv[i] * hv);
@@ -1113,12 +1134,16 @@ static void do_texture(struct sl_exec *x, const struct sl_insn *in, enum tex_kin
 					       n * sizeof(float));
 			ncoord = 4;
 		} else {
+			float *center = sl_exec_scratch(x, 3 * s);
 			for (int c = 0; c < 3; c++) {
 				float *out[4];
 				for (int k = 0; k < 4; k++)
 					out[k] = corner[k] + (size_t)c * s;
 				tex_region(x, a[2], c, out);
+				memcpy(center + (size_t)c * s, plane_of(x, a[2], c), n * sizeof(float));
 			}
+			if (kind == TEX_SHADOW)
+				q.center = center;
 			ncoord = 1;
 		}
 	}

@@ -13,6 +13,14 @@ struct sl_exec {
 	uint32_t maxn;          /* capacity in points */
 	uint32_t stride;        /* plane stride of varying registers (= maxn) */
 	uint32_t nu, nv, n;     /* current grid; n = nu * nv */
+	/*
+	 * Derivative stencils (sl_exec_set_stencil): stencil_m samples, each
+	 * with its steps stencil_du[i], stencil_dv[i]; 0 for grid derivatives.
+	 * The arrays hold maxn / 3 floats each once a stencil was set.
+	 */
+	uint32_t stencil_m;
+	float *stencil_du, *stencil_dv;
+	bool warned_small;      /* a light host said once that this light is too small */
 
 	float **data;           /* per register; NULL for string registers */
 	const char ***sdata;    /* per string register: 1 (uniform) or stride pointers */
@@ -111,12 +119,36 @@ void sl_exec_fail(struct sl_exec *x, const struct sl_insn *in, const char *fmt, 
  * Derivatives of the plane @f (n values, point layout) with respect to the
  * surface parameters u and v: central differences inside the grid, one-sided
  * second-order ones at its edges, divided by du and dv (the globals' values).
- * A grid one point wide in u (or v) gives 0 for that derivative. @dfdu or
- * @dfdv may be NULL.
+ * A grid one point wide in u (or v) gives 0 for that derivative. With a
+ * stencil (sl_exec_set_stencil) the differences within each sample's
+ * stencil instead, divided by the sample's own steps; the moved points get
+ * their sample's derivative. @dfdu or @dfdv may be NULL; either may be @f.
  */
 void sl_exec_deriv(struct sl_exec *x, const float *f, float *dfdu, float *dfdv);
 
-/** The global du and dv of this run (uniform values; 1 when the program has none). */
+/**
+ * For code that turns derivatives back into changes over one step (filter
+ * regions, area()): fills @du and @dv (as sl_exec_deriv() does) with what,
+ * multiplied by *hu and *hv, gives Du(f) du and Dv(f) dv. Over the grid the
+ * derivatives and its uniform steps (sl_exec_du(), _dv()); with a stencil
+ * each sample's differences f[m + i] - f[i] and f[2m + i] - f[i] and 1, so
+ * the change is exact whatever the sample's own step.
+ */
+void sl_exec_deriv_steps(struct sl_exec *x, const float *f, float *du, float *dv, float *hu,
+			 float *hv);
+
+/**
+ * The changes of @f over one step along u and along v, Du(f) du and
+ * Dv(f) dv, per point: sl_exec_deriv_steps() multiplied out (what a bake
+ * stores for the moved blocks of a stencil). Same arguments as
+ * sl_exec_deriv().
+ */
+void sl_exec_delta(struct sl_exec *x, const float *f, float *deltau, float *deltav);
+
+/**
+ * The global du and dv of this run (uniform values; 1 when the program has
+ * none): the grid's steps. A stencil's steps are per sample (sl_exec_delta).
+ */
 float sl_exec_du(const struct sl_exec *x);
 float sl_exec_dv(const struct sl_exec *x);
 

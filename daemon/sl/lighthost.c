@@ -7,6 +7,7 @@
 
 #include "exec_impl.h"
 
+#include <stdio.h>
 #include <string.h>
 
 static struct sl_exec *light_at(const struct sl_lighthost *lh, int i)
@@ -73,7 +74,20 @@ static bool lh_light(void *user, int i, struct sl_exec *surface, uint32_t n, uin
 		return false;
 	bool grid_ok = n == surface->n ? sl_exec_set_grid(lx, surface->nu, surface->nv)
 				      : sl_exec_set_grid(lx, n, 1);
-	if (!grid_ok)
+	if (!grid_ok) {
+		if (!lx->warned_small) {
+			lx->warned_small = true;
+			const struct sl_program *lp = sl_exec_program(lx);
+			fprintf(stderr, "%s: warning: light shader '%s' has room for %u points, the "
+				"surface grid has %u: the light is left out\n",
+				lp->source_path ? lp->source_path : "light",
+				lp->name ? lp->name : "?", lx->maxn, n);
+		}
+		return false;
+	}
+	/* The light's derivatives (shadow() of Ps) are taken as the surface's. */
+	uint32_t m = n == surface->n ? surface->stencil_m : 0;
+	if (!sl_exec_set_stencil(lx, m, surface->stencil_du, surface->stencil_dv))
 		return false;
 
 	bool pv;

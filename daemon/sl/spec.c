@@ -95,6 +95,94 @@ static bool gpu_cannot(const struct sl_program *prog, const struct sl_insn *in)
 	}
 }
 
+/* Is register @r the constant empty string (a lookup of no map)? */
+static bool empty_name(const struct sl_program *prog, int32_t r)
+{
+	const struct sl_reg *g = &prog->regs[r];
+	if (g->kind != SL_REG_CONST || g->type != SL_TYPE_STRING)
+		return false;
+	const char *str = prog->strings[g->cindex];
+	return !str || !*str;
+}
+
+/* Leading numeric arguments of @in from argument @from on. */
+static int numeric_args(const struct sl_program *prog, const struct sl_insn *in, int from)
+{
+	int k = from;
+	while (k < in->nargs && prog->regs[in->args[k]].type != SL_TYPE_STRING)
+		k++;
+	return k - from;
+}
+
+/*
+ * The values whose derivatives call @in takes, as the interpreter does
+ * (exec_builtins.c): the operand of Du, Dv, area and calculatenormal, both
+ * of Deriv, filterstep's s1 when no s2 gives the filter width, and the
+ * coordinates a texture, environment or shadow lookup builds its filter
+ * region around (texture() with none: the globals s and t). Explicit
+ * corners take none, nor does a lookup of the constant empty name (the
+ * fill, no map). Writes up to 2 registers to @r and returns how many.
+ */
+static int deriv_operands(const struct sl_program *prog, const struct sl_insn *in, int32_t r[2])
+{
+	if (in->op != SL_OP_CALL || in->bi < 0 || (uint32_t)in->bi >= sl_nbuiltins)
+		return 0;
+	const int32_t *a = in->args;
+	switch (sl_builtins[in->bi].id) {
+	case SL_BI_DU: case SL_BI_DV: case SL_BI_AREA: case SL_BI_CALCULATENORMAL:
+		if (in->nargs < 1)
+			return 0;
+		r[0] = a[0];
+		return 1;
+	case SL_BI_DERIV:
+		if (in->nargs < 2)
+			return 0;
+		r[0] = a[0];
+		r[1] = a[1];
+		return 2;
+	case SL_BI_FILTERSTEP:
+		if (in->nargs < 2 || numeric_args(prog, in, 0) >= 3)
+			return 0;
+		r[0] = a[1];
+		return 1;
+	case SL_BI_TEXTURE: {
+		if (in->nargs < 2 || empty_name(prog, a[0]))
+			return 0;
+		int nc = numeric_args(prog, in, 2);
+		if (nc >= 8)
+			return 0;
+		r[0] = nc >= 2 ? a[2] : prog->global_reg[SL_GLOBAL_S];
+		r[1] = nc >= 2 ? a[3] : prog->global_reg[SL_GLOBAL_T];
+		return 2;
+	}
+	case SL_BI_ENVIRONMENT: case SL_BI_SHADOW: {
+		if (in->nargs < 3 || empty_name(prog, a[0]))
+			return 0;
+		int nc = numeric_args(prog, in, 2);
+		if (nc < 1 || nc >= 4)
+			return 0;
+		r[0] = a[2];
+		return 1;
+	}
+	default:
+		return 0;
+	}
+}
+
+bool sl_program_takes_derivatives(const struct sl_program *prog)
+{
+	if (!prog)
+		return false;
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		int32_t r[2];
+		int n = deriv_operands(prog, &prog->code[i], r);
+		for (int k = 0; k < n; k++)
+			if (r[k] >= 0 && prog->regs[r[k]].varying)
+				return true;
+	}
+	return false;
+}
+
 struct ctl {
 	int32_t at;
 	bool dynamic;
@@ -501,6 +589,114 @@ static struct sl_program *make_dynamic(const struct sl_program *prog, const stru
 	return d;
 }
 
+/* Mark @r as needing its derivatives: varying values only (a uniform one's are 0). */
+static void need_deriv(const struct sl_program *p, uint8_t *need, int32_t r, bool *changed)
+{
+	if (r >= 0 && p->regs[r].varying && !need[r]) {
+		need[r] = 1;
+		*changed = true;
+	}
+}
+
+/*
+ * cached_deriv: which cached values the dynamic program takes derivatives
+ * through. The roots are the operands of the derivatives it takes
+ * (deriv_operands) and, with SL_SPEC_LIGHT_DERIVATIVES, the positions it
+ * runs the lights at (an illuminance statement's, the global P of the
+ * lighting functions). From there backwards along data flow through the
+ * instructions it runs (the kept ones and the defaults of parameters that
+ * are not cached), including the implicit inputs of built-ins and the
+ * position behind the lights' L, Cl and Ol, to the cached values.
+ */
+static void mark_derivatives(struct sl_spec *s, unsigned flags)
+{
+	const struct sl_program *p = s->prog;
+	s->cached_deriv = rl_xcalloc(s->ncached + 1, 1);
+	uint8_t *need = rl_xcalloc(p->nregs + 1, 1);
+	uint8_t *runs = rl_xcalloc(p->ncode + 1, 1);
+	uint8_t *is_cached = rl_xcalloc(p->nregs + 1, 1);
+	for (uint32_t k = 0; k < s->ncached; k++)
+		is_cached[s->cached[k]] = 1;
+	for (uint32_t i = p->body_begin; i < p->ncode; i++)
+		runs[i] = s->keep[i];
+	for (uint32_t k = 0; k < p->nparams; k++)
+		if (!is_cached[p->params[k].reg])
+			for (uint32_t i = p->params[k].init_begin; i < p->params[k].init_end; i++)
+				runs[i] = 1;
+
+	int32_t gP = p->global_reg[SL_GLOBAL_P];
+	bool changed = false;
+	for (uint32_t i = 0; i < p->ncode; i++) {
+		if (!runs[i])
+			continue;
+		const struct sl_insn *in = &p->code[i];
+		int32_t r[2];
+		int n = deriv_operands(p, in, r);
+		for (int k = 0; k < n; k++)
+			need_deriv(p, need, r[k], &changed);
+		if (!(flags & SL_SPEC_LIGHT_DERIVATIVES))
+			continue;
+		if (in->op == SL_OP_ILLUMINANCE && in->imm >= 0 && in->imm < in->nargs)
+			need_deriv(p, need, in->args[in->imm], &changed);
+		if (in->op == SL_OP_CALL && in->bi >= 0 &&
+		    (sl_builtins[in->bi].flags & SL_BIF_LIGHTS))
+			need_deriv(p, need, gP, &changed);
+	}
+
+	int32_t light_out[3] = { p->global_reg[SL_GLOBAL_L], p->global_reg[SL_GLOBAL_CL],
+				 p->global_reg[SL_GLOBAL_OL] };
+	while (changed) {
+		changed = false;
+		bool lights = false;
+		for (int g = 0; g < 3; g++)
+			lights = lights || (light_out[g] >= 0 && need[light_out[g]]);
+		for (uint32_t i = p->ncode; i-- > 0;) {
+			if (!runs[i])
+				continue;
+			const struct sl_insn *in = &p->code[i];
+			if (in->op == SL_OP_ILLUMINANCE) {
+				/* L, Cl and Ol come from lights run at this position */
+				if (lights && in->imm >= 0 && in->imm < in->nargs)
+					need_deriv(p, need, in->args[in->imm], &changed);
+				continue;
+			}
+			if (is_control(in->op))
+				continue;
+			bool want = in->dst >= 0 && need[in->dst];
+			for (int k = 0; k < in->nargs; k++)
+				if (arg_is_output(in, k) && need[in->args[k]])
+					want = true;
+			if (!want)
+				continue;
+			for (int k = 0; k < in->nargs; k++)
+				if (!arg_is_output(in, k))
+					need_deriv(p, need, in->args[k], &changed);
+			if (in->op == SL_OP_SETCOMP || in->op == SL_OP_ASET)
+				need_deriv(p, need, in->dst, &changed);
+			if (in->op != SL_OP_CALL || in->bi < 0)
+				continue;
+			/* the globals built-ins read without being given them */
+			const struct sl_builtin *b = &sl_builtins[in->bi];
+			if (b->flags & SL_BIF_LIGHTS)
+				need_deriv(p, need, gP, &changed);
+			else if (b->id == SL_BI_FACEFORWARD && in->nargs == 2)
+				need_deriv(p, need, p->global_reg[SL_GLOBAL_NG], &changed);
+			else if (b->id == SL_BI_TEXTURE && numeric_args(p, in, 2) < 2) {
+				need_deriv(p, need, p->global_reg[SL_GLOBAL_S], &changed);
+				need_deriv(p, need, p->global_reg[SL_GLOBAL_T], &changed);
+			}
+		}
+	}
+	for (uint32_t k = 0; k < s->ncached; k++)
+		if (need[s->cached[k]]) {
+			s->cached_deriv[k] = 1;
+			s->needs_stencil = true;
+		}
+	free(need);
+	free(runs);
+	free(is_cached);
+}
+
 static void add_unique(int32_t **v, uint32_t *n, int32_t r)
 {
 	for (uint32_t i = 0; i < *n; i++)
@@ -702,6 +898,7 @@ struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *cons
 	s->slice.noutputs = nout;
 	s->caching = make_caching(prog, s);
 	s->dynamic = make_dynamic(prog, s);
+	mark_derivatives(s, flags);
 
 	free(reg_live);
 	free(st.writes);
@@ -718,6 +915,7 @@ void sl_spec_destroy(struct sl_spec *s)
 	free(s->live);
 	free(s->reg_dynamic);
 	free(s->cached);
+	free(s->cached_deriv);
 	free(s->cache_required);
 	free(s->keep);
 	free(s->outputs);

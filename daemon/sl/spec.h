@@ -45,7 +45,10 @@ struct sl_spec {
 	 *
 	 * Its registers are numbered as @prog's. sl_spec_bind_cache() or
 	 * sl_spec_copy_cache() sets the grid to n x 1 (samples in any order,
-	 * from any grids: nothing reads a neighbour, derivatives are cached),
+	 * from any grids: nothing reads a neighbour; derivatives of static
+	 * values are cached, those taken through cached values in the dynamic
+	 * code, such as a light's shadow() of Ps, run on derivative stencils:
+	 * cached_deriv, sl_exec_set_stencil),
 	 * holds the cached registers (sl_exec_hold) and writes their values.
 	 * The globals the kept code reads (P, N, I, s, t, Cs, Os, and E and
 	 * time when lights run) are cached values like the others; a global
@@ -63,6 +66,17 @@ struct sl_spec {
 	 * value). Lights run whole through the light host, as for @prog.
 	 */
 	struct sl_program *dynamic;
+	/*
+	 * Per cached value (s->cached order): the dynamic part takes a
+	 * derivative through it (Du, Dv, Deriv, area, calculatenormal, a
+	 * texture filter region, ... of a value computed from it), so a shot
+	 * keeps its steps along u and v with it and the dynamic program runs on
+	 * derivative stencils (sl_exec_set_stencil). With
+	 * SL_SPEC_LIGHT_DERIVATIVES the surface position P that lights see as
+	 * Ps counts too.
+	 */
+	uint8_t *cached_deriv;
+	bool needs_stencil;      /* some cached_deriv is set */
 };
 
 /**
@@ -81,7 +95,20 @@ enum {
 	 * surface shader needs them per sample.
 	 */
 	SL_SPEC_CACHE_PARAMS = 1,
+	/*
+	 * The lights take derivatives of Ps (shadow(), texture() in a light,
+	 * see sl_program_takes_derivatives): mark the cached P the lights get
+	 * in cached_deriv.
+	 */
+	SL_SPEC_LIGHT_DERIVATIVES = 2,
 };
+
+/**
+ * Does @prog take derivatives of a varying value anywhere (Du, Dv, Deriv,
+ * area, calculatenormal, texture/environment/shadow filter regions,
+ * filterstep widths)? A light shader that does needs Ps's derivatives.
+ */
+bool sl_program_takes_derivatives(const struct sl_program *prog);
 
 /** sl_specialize with @flags (SL_SPEC_*). */
 struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *const *dynamic_params,

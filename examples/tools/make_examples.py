@@ -259,3 +259,172 @@ FrameBegin 1
 FrameEnd
 """ % dict(cam=look_at((0, 2, -1.5), (0, 0.8, 3)), floor=quad(0, 5))
 write("examples/displaced/displaced.rib", displaced)
+
+# ---- crowd: a street crowd at 8x8 samples, most of what is shaded hidden ----
+def lcg(seed):
+    """A small deterministic generator, so the scene does not depend on Python's."""
+    state = [seed]
+    def next_value():
+        state[0] = (state[0] * 1103515245 + 12345) % 2147483648
+        return state[0] / 2147483648.0
+    return next_value
+
+rnd = lcg(2007)
+clothes = [(0.55, 0.12, 0.1), (0.15, 0.25, 0.5), (0.3, 0.3, 0.32), (0.6, 0.5, 0.25),
+           (0.2, 0.4, 0.25), (0.7, 0.7, 0.68), (0.4, 0.2, 0.35), (0.1, 0.1, 0.12)]
+skins = [(0.85, 0.65, 0.5), (0.6, 0.42, 0.3), (0.45, 0.3, 0.2), (0.9, 0.75, 0.62)]
+
+def figure(x, z, turn, height, body, skin, surface, motion=None):
+    """A figure: a body (cylinder with a rounded top), a neck and a head; with
+    motion, (dx, dz) is how far it moves while the shutter is open."""
+    lines = ["    AttributeBegin"]
+    if motion:
+        lines += ["      MotionBegin [0 0.5]",
+                  "        Translate %.3f 0 %.3f" % (x, z),
+                  "        Translate %.3f 0 %.3f" % (x + motion[0], z + motion[1]),
+                  "      MotionEnd"]
+    else:
+        lines.append("      Translate %.3f 0 %.3f" % (x, z))
+    shoulders = 0.78 * height
+    lines += ["      Rotate %.1f 0 1 0" % turn,
+              "      %s" % surface,
+              "      Color [%.3f %.3f %.3f]" % body,
+              "      AttributeBegin",
+              "        Scale 1 1 0.7",
+              "        Rotate -90 1 0 0",
+              "        Cylinder 0.2 0 %.3f 360" % shoulders,
+              "        Translate 0 0 %.3f" % shoulders,
+              "        Sphere 0.2 0 0.2 360",
+              "      AttributeEnd",
+              "      Color [%.3f %.3f %.3f]" % skin,
+              "      Translate 0 %.3f 0" % (shoulders + 0.16),
+              "      Rotate -90 1 0 0",
+              "      Cylinder 0.05 0 0.08 360",
+              "      Translate 0 0 0.19",
+              "      Sphere 0.12 -0.12 0.12 360",
+              "    AttributeEnd"]
+    return "\n".join(lines)
+
+people = []
+rows = [(3.0, 3), (4.2, 5), (5.5, 5), (7.0, 6), (8.8, 6), (11.0, 7), (14.0, 6)]
+n = 0
+for z, count in rows:
+    # spread each row over about the width the camera sees at that depth
+    width = 0.75 * (z + 1.0) * 2
+    for i in range(count):
+        x = -width / 2 + width * (i + 0.5 + 0.6 * (rnd() - 0.5)) / count
+        zz = z + 0.8 * (rnd() - 0.5)
+        height = 1.55 + 0.25 * rnd()
+        turn = 360 * rnd()
+        body = clothes[n % len(clothes)]
+        skin = skins[(n * 3 + 1) % len(skins)]
+        surface = ('Surface "plastic" "Kd" 0.7 "Ks" 0.25 "roughness" %.2f' % (0.08 + 0.2 * rnd())
+                   if n % 3 else 'Surface "matte"')
+        # a few walk across the frame, one runs
+        motion = {4: (0.12, 0.0), 9: (-0.1, -0.05), 13: (0.5, 0.0), 18: (-0.15, 0.05)}.get(n)
+        people.append(figure(x, zz, turn, height, body, skin, surface, motion))
+        n += 1
+
+props = []
+# lamp posts down the right side of the street, and their lamps
+for i, z in enumerate((5.0, 11.0, 17.0)):
+    props.append("""    AttributeBegin
+      Surface "metal" "roughness" 0.15
+      Color [0.5 0.5 0.55]
+      Translate 3.2 0 %g
+      Rotate -90 1 0 0
+      Cylinder 0.06 0 3.6 360
+      Translate 0 0 3.6
+      Sphere 0.16 -0.16 0.16 360
+    AttributeEnd""" % z)
+# a bench (bilinear patches on metal legs), left foreground
+props.append("""    AttributeBegin
+      Surface "plastic" "Kd" 0.6 "Ks" 0.2 "roughness" 0.2
+      Color [0.45 0.3 0.18]
+      Translate -2.3 0 2.6
+      Rotate 20 0 1 0
+      Patch "bilinear" "P" [-0.9 0.45 -0.2  0.9 0.45 -0.2  -0.9 0.45 0.2  0.9 0.45 0.2]
+      Patch "bilinear" "P" [-0.9 0.45 0.2  0.9 0.45 0.2  -0.9 0.9 0.25  0.9 0.9 0.25]
+      Surface "metal" "roughness" 0.2
+      Color [0.3 0.3 0.3]
+      Translate -0.8 0 0
+      Rotate -90 1 0 0
+      Cylinder 0.04 0 0.45 360
+      Translate 1.6 0 0
+      Cylinder 0.04 0 0.45 360
+    AttributeEnd""")
+# a glass shelter panel in front of the crowd on the right, and a balloon
+props.append("""    AttributeBegin
+      Surface "plastic" "Kd" 0.3 "Ks" 0.6 "roughness" 0.05
+      Color [0.6 0.75 0.8]
+      Opacity [0.3 0.3 0.3]
+      Translate 1.7 0 3.0
+      Rotate -25 0 1 0
+      Patch "bilinear" "P" [-0.7 2.1 0  0.7 2.1 0  -0.7 0.2 0  0.7 0.2 0]
+    AttributeEnd
+    AttributeBegin
+      Surface "plastic" "Kd" 0.6 "Ks" 0.5 "roughness" 0.05
+      Color [0.9 0.2 0.3]
+      Opacity [0.75 0.75 0.75]
+      Translate -0.6 2.5 7.0
+      Sphere 0.3 -0.3 0.3 360
+    AttributeEnd""")
+
+# windows and doors on the building's front
+openings = []
+for floor in range(4):
+    for col in range(-8, 8):
+        x = 2.6 * col + 0.65
+        if floor == 0:
+            if col % 3:
+                continue
+            y0, y1 = 0, 2.6
+        else:
+            y0, y1 = 3.6 * floor, 3.6 * floor + 2.0
+        openings.append('      Patch "bilinear" "P" [%g %g 21.95  %g %g 21.95  %g %g 21.95  %g %g 21.95]'
+                        % (x, y1, x + 1.3, y1, x, y0, x + 1.3, y0))
+props.insert(0, """    AttributeBegin
+      Surface "plastic" "Kd" 0.3 "Ks" 0.7 "roughness" 0.04
+      Color [0.12 0.14 0.17]
+%s
+    AttributeEnd""" % "\n".join(openings))
+
+crowd = """##RenderMan RIB
+# A street crowd: %(n)d figures in rows at several depths (a few walking, one
+# running, motion-blurred), lamp posts, a bench, a glass panel and a balloon in
+# front of a building, on a street that runs out of frame. Sun, sky fill, a
+# spot on the middle of the crowd and a warm street lamp. 320x180 at 8x8 samples,
+# shading rate 1: like a production shot, most of what is shaded ends up hidden.
+version 3.04
+FrameBegin 1
+  Format 320 180 1
+  PixelSamples 8 8
+  ShadingRate 1
+  Shutter 0 0.5
+  Projection "perspective" "fov" 40
+  Display "crowd.exr" "file" "rgba"
+  %(cam)s
+  WorldBegin
+    LightSource "ambientlight" 1 "intensity" 0.12 "lightcolor" [0.6 0.7 1]
+    LightSource "distantlight" 2 "intensity" 0.9 "lightcolor" [1 0.92 0.8]
+        "from" [-4 6 -2] "to" [0 0 4]
+    LightSource "spotlight" 3 "intensity" 40 "from" [1.5 7 2] "to" [0 0.8 7.5]
+        "coneangle" 0.3 "conedeltaangle" 0.1
+    LightSource "pointlight" 4 "intensity" 2.5 "from" [3 3.3 11] "lightcolor" [1 0.75 0.45]
+    AttributeBegin
+      Surface "matte"
+      Color [0.42 0.41 0.4]
+      Polygon "P" [-40 0 -5  -40 0 60  40 0 60  40 0 -5]
+    AttributeEnd
+    AttributeBegin
+      Surface "plastic" "Kd" 0.6 "Ks" 0.1 "roughness" 0.3
+      Color [0.62 0.55 0.48]
+      Patch "bilinear" "P" [-30 14 22  30 14 22  -30 0 22  30 0 22]
+    AttributeEnd
+%(props)s
+%(people)s
+  WorldEnd
+FrameEnd
+""" % dict(n=len(people), cam=look_at((0, 1.75, -1.5), (0.2, 1.2, 10)),
+           props="\n".join(props), people="\n".join(people))
+write("examples/crowd/crowd.rib", crowd)

@@ -61,6 +61,31 @@ expect_empty_stdout
 checks=$((checks + 1))
 [ -s "$work/other.exr" ] || fail "other.exr not written"
 
+# -o names the image of the beauty frame; a shadow pass keeps its map's name.
+cat >"$work/pass.rib" <<'RIB'
+FrameBegin 1
+  Format 16 16 1
+  Display "pass.z" "zfile" "z"
+  WorldBegin
+    Translate 0 0 5
+    Sphere 1 -1 1 360
+  WorldEnd
+FrameEnd
+FrameBegin 2
+  Format 16 16 1
+  Display "beauty.exr" "file" "rgba"
+  WorldBegin
+    Translate 0 0 5
+    Sphere 1 -1 1 360
+  WorldEnd
+FrameEnd
+RIB
+run "-o with a shadow pass" bash -c "cd '$work' && '$relight' render -q -o image.exr pass.rib"
+expect_status 0
+checks=$((checks + 1))
+[ -s "$work/pass.z" ] && [ -s "$work/image.exr" ] && [ ! -e "$work/beauty.exr" ] ||
+	fail "-o renamed the shadow pass's map or missed the image"
+
 run "--crop" bash -c "cd '$work' && '$relight' render -q --crop 0 8 0 8 -o crop.exr ok.rib"
 expect_status 0
 

@@ -1,10 +1,13 @@
 /*
  * Tests of the grid interpreter's core (exec.c) and the light host, on
  * programs built by hand: every op, masks through nested control flow,
- * loops with per-point trip counts, parameters, derivatives, lights.
+ * loops with per-point trip counts, parameters, derivatives, lights; and,
+ * on compiled shaders, derivatives over stencils of samples taken off
+ * their grids.
  */
 #include "exec_impl.h"
 #include "lighthost.h"
+#include "sl.h"
 #include "test.h"
 
 #include <float.h>
@@ -1850,6 +1853,577 @@ static void test_light_recursion(void)
 	pb_free(&b);
 }
 
+/* ------------------------------------------------------------------------ */
+/* Derivative stencils                                                       */
+
+#define SNU 9
+#define SNV 7
+#define SN (SNU * SNV)
+
+/*
+ * Derivatives of Q, an affine function of P (a matrix, an offset and a
+ * uniform factor), in every form the interpreter takes them.
+ */
+static const char probe_src[] =
+	"surface probe(float k = 1.5;\n"
+	"	output varying vector dQu = 0; output varying vector dQv = 0;\n"
+	"	output varying float ar = 0; output varying normal nq = 0;\n"
+	"	output varying float dg = 0; output varying float fs = 0;\n"
+	"	output varying float tx = 0; output varying float sh = 0;\n"
+	"	output varying vector ddQ = 0)\n"
+	"{\n"
+	"	matrix M = matrix(0.8, 0.1, -0.3, 0,  0.2, 1.1, 0.4, 0,\n"
+	"			  -0.5, 0.3, 0.9, 0,  0.4, -0.7, 0.5, 1);\n"
+	"	point Q = transform(M, P) * k + point(0.3, -0.2, 0.5);\n"
+	"	dQu = Du(Q);\n"
+	"	dQv = Dv(Q);\n"
+	"	ar = area(Q);\n"
+	"	nq = calculatenormal(Q);\n"
+	"	float g = xcomp(Q) - 2 * zcomp(Q), h = ycomp(P) - xcomp(P) - 2 * zcomp(P);\n"
+	"	dg = Deriv(g, h);\n"
+	"	fs = filterstep(2.4, xcomp(Q));\n"
+	"	tx = texture(\"map\", xcomp(Q), ycomp(Q));\n"
+	"	sh = shadow(\"smap\", Q);\n"
+	"	ddQ = Du(dQu) + Dv(dQv);\n"
+	"	Oi = 1;\n"
+	"	Ci = 0;\n"
+	"}\n";
+
+/* Filter regions a host was asked for: corner k of point i (texture s, t; shadow x, y, z). */
+struct seen {
+	float s[4][3 * SN], t[4][3 * SN];
+	float pos[4][3][3 * SN];
+	int ntex, nshadow;
+};
+
+static bool seen_texture(void *user, const struct sl_tex_lookup *q)
+{
+	struct seen *w = user;
+	w->ntex++;
+	for (int k = 0; k < 4; k++)
+		for (uint32_t i = 0; i < q->n && i < 3 * SN; i++) {
+			w->s[k][i] = q->s[k][i];
+			w->t[k][i] = q->t[k][i];
+		}
+	for (uint32_t i = 0; i < q->n; i++)
+		q->out[i] = 0.25f;
+	return true;
+}
+
+/* A shadow lookup: records its corners, answers with the size of the region. */
+static bool seen_shadow(struct seen *w, const struct sl_tex_lookup *q)
+{
+	w->nshadow++;
+	for (uint32_t i = 0; i < q->n; i++) {
+		float e[2] = { 0, 0 };
+		for (int c = 0; c < 3; c++) {
+			for (int k = 0; k < 4; k++)
+				if (i < 3 * SN)
+					w->pos[k][c][i] = q->pos[k][(size_t)c * q->stride + i];
+			float a = q->pos[1][(size_t)c * q->stride + i] - q->pos[0][(size_t)c * q->stride + i];
+			float b = q->pos[3][(size_t)c * q->stride + i] - q->pos[0][(size_t)c * q->stride + i];
+			e[0] += a * a;
+			e[1] += b * b;
+		}
+		q->out[i] = fminf(1.0f, sqrtf(e[0]) + sqrtf(e[1]));
+	}
+	return true;
+}
+
+static bool seen_shadow_host(void *user, const struct sl_tex_lookup *q)
+{
+	return seen_shadow(user, q);
+}
+
+/* The light host's shadow callback: what it saw goes to the host's owner. */
+static bool seen_shadow_lh(void *user, const struct sl_tex_lookup *q)
+{
+	return seen_shadow(((struct sl_lighthost *)user)->owner, q);
+}
+
+/* A permutation of 0..n-1 drawn from @seed (xorshift32). */
+static void shuffle_order(uint32_t *order, uint32_t n, uint32_t seed)
+{
+	uint32_t r = seed ? seed : 1;
+	for (uint32_t i = 0; i < n; i++)
+		order[i] = i;
+	for (uint32_t i = n; i-- > 1;) {
+		r ^= r << 13;
+		r ^= r >> 17;
+		r ^= r << 5;
+		uint32_t j = r % (i + 1);
+		uint32_t t = order[i];
+		order[i] = order[j];
+		order[j] = t;
+	}
+}
+
+/* A sphere patch on an SNU x SNV grid: P and N (planar, SN floats per component). */
+static void sphere_patch(float *P, float *N)
+{
+	for (uint32_t iv = 0; iv < SNV; iv++)
+		for (uint32_t iu = 0; iu < SNU; iu++) {
+			uint32_t i = iv * SNU + iu;
+			float th = 0.5f + 0.6f * (float)iv / (SNV - 1);
+			float ph = 0.3f + 0.8f * (float)iu / (SNU - 1);
+			float n[3] = { sinf(th) * cosf(ph), sinf(th) * sinf(ph), cosf(th) };
+			for (int c = 0; c < 3; c++) {
+				N[c * SN + i] = n[c];
+				P[c * SN + i] = 2 * n[c] + (c == 2 ? 1.0f : 0.0f);
+			}
+		}
+}
+
+/* Write planar @v (SN per component, @nc components) into global @g at points order[j]. */
+static void put_global(struct sl_exec *x, enum sl_global g, int nc, const float *v,
+		       const uint32_t *order, uint32_t n, uint32_t at)
+{
+	bool vary;
+	float *d = sl_exec_global(x, g, &vary);
+	if (!d || !vary)
+		return;
+	for (int c = 0; c < nc; c++)
+		for (uint32_t j = 0; j < n; j++)
+			d[(size_t)c * x->stride + at + j] = v[c * SN + (order ? order[j] : j)];
+}
+
+static void set_uniform(struct sl_exec *x, enum sl_global g, float v)
+{
+	bool vary;
+	float *d = sl_exec_global(x, g, &vary);
+	if (d && !vary)
+		d[0] = v;
+}
+
+/*
+ * The changes of P over one grid step as the bake computes them
+ * (sl_exec_delta on the real grid): dPu, dPv planar, SN per component.
+ */
+static void grid_deltas(struct sl_exec *x, const float *P, float *dPu, float *dPv)
+{
+	CHECK(sl_exec_set_grid(x, SNU, SNV));
+	CHECK(sl_exec_stencil(x) == 0);
+	for (int c = 0; c < 3; c++)
+		sl_exec_delta(x, P + c * SN, dPu + c * SN, dPv + c * SN);
+}
+
+/* The stencil inputs of global @g from grid values @v and grid changes @du, @dv (NULL: copies). */
+static void put_stencil(struct sl_exec *x, enum sl_global g, int nc, const float *v,
+			const float *du, const float *dv, const uint32_t *order, uint32_t m,
+			const float *scale)
+{
+	bool vary;
+	float *d = sl_exec_global(x, g, &vary);
+	if (!d || !vary)
+		return;
+	for (int c = 0; c < nc; c++)
+		for (uint32_t j = 0; j < m; j++) {
+			uint32_t i = order[j];
+			float f = scale ? scale[j] : 1.0f;
+			float *p = d + (size_t)c * x->stride;
+			p[j] = v[c * SN + i];
+			p[m + j] = v[c * SN + i] + (du ? f * du[c * SN + i] : 0.0f);
+			p[2 * m + j] = v[c * SN + i] + (dv ? dv[c * SN + i] : 0.0f);
+		}
+}
+
+/* Outputs of the probe, per name: ncomp planes of SN (grid) or 3 SN (stencil) values. */
+static const char *const probe_outs[] = { "dQu", "dQv", "ar", "nq", "dg", "fs", "ddQ" };
+#define NPROBE (sizeof(probe_outs) / sizeof(probe_outs[0]))
+
+static float probe_out(struct sl_exec *x, const char *name, int c, uint32_t i)
+{
+	const struct sl_program *p = sl_exec_program(x);
+	int k = sl_program_find_param(p, name);
+	if (k < 0)
+		return NAN;
+	int32_t r = p->params[k].reg;
+	int nc = sl_reg_ncomp(&p->regs[r]);
+	return sl_x_get(x, r, c < nc ? c : 0, i);
+}
+
+static int probe_ncomp(struct sl_exec *x, const char *name)
+{
+	const struct sl_program *p = sl_exec_program(x);
+	int k = sl_program_find_param(p, name);
+	return k < 0 ? 0 : sl_reg_ncomp(&p->regs[p->params[k].reg]);
+}
+
+/*
+ * Largest difference of the stencil run's samples from the grid run's
+ * points order[j], relative to the largest magnitude of that output on the
+ * grid; @scale[j] multiplies the grid value (NULL: 1).
+ */
+static double probe_diff(struct sl_exec *sx, float grid[NPROBE][3][SN], size_t o,
+			 const uint32_t *order, uint32_t m, const float *scale)
+{
+	int nc = probe_ncomp(sx, probe_outs[o]);
+	double big = 0, err = 0;
+	for (int c = 0; c < nc; c++)
+		for (uint32_t i = 0; i < SN; i++)
+			big = fmax(big, fabs(grid[o][c][i]));
+	for (int c = 0; c < nc; c++)
+		for (uint32_t j = 0; j < m; j++) {
+			double want = grid[o][c][order[j]] * (scale ? scale[j] : 1.0f);
+			double e = fabs(probe_out(sx, probe_outs[o], c, j) - want) / fmax(big, 1e-30);
+			if (!(e <= err))
+				err = e;
+		}
+	return err;
+}
+
+struct stencil_run {
+	struct sl_exec *x;
+	const struct sl_host *host;
+};
+
+static bool run_stencil_case(void *arg)
+{
+	struct stencil_run *r = arg;
+	return sl_exec_run(r->x, r->host);
+}
+
+/*
+ * Du, Dv, Deriv, area, calculatenormal, filterstep and the texture and
+ * shadow filter regions of an affine function of P: on a sphere patch's
+ * grid, then on stencils of its samples in a shuffled order (moved inputs
+ * P + Du(P) du and P + Dv(P) dv from the grid). The samples' results
+ * equal the grid's (to 1e-5 of each output's magnitude).
+ */
+static void test_stencil_deriv(void)
+{
+	struct sl_program *prog = sl_compile_string("probe.sl", probe_src, strlen(probe_src), NULL);
+	CHECK(prog != NULL);
+	if (!prog)
+		return;
+	struct sl_exec *x = sl_exec_create(prog, 3 * SN);
+	CHECK(x != NULL);
+	if (!x) {
+		sl_program_destroy(prog);
+		return;
+	}
+	static struct seen seen, grid_seen;
+	struct sl_host host = { .user = &seen, .texture = seen_texture, .shadow = seen_shadow_host };
+	static float P[3 * SN], N[3 * SN], dPu[3 * SN], dPv[3 * SN];
+	static float grid[NPROBE][3][SN];
+	sphere_patch(P, N);
+	const float du = 1.0f / (SNU - 1), dv = 1.0f / (SNV - 1);
+
+	/* the grid */
+	CHECK(sl_exec_set_grid(x, SNU, SNV));
+	put_global(x, SL_GLOBAL_P, 3, P, NULL, SN, 0);
+	set_uniform(x, SL_GLOBAL_DU, du);
+	set_uniform(x, SL_GLOBAL_DV, dv);
+	memset(&seen, 0, sizeof(seen));
+	CHECK(sl_exec_run(x, &host));
+	CHECK(seen.ntex == 1 && seen.nshadow == 1);
+	grid_seen = seen;
+	for (size_t o = 0; o < NPROBE; o++)
+		for (int c = 0; c < probe_ncomp(x, probe_outs[o]); c++)
+			for (uint32_t i = 0; i < SN; i++)
+				grid[o][c][i] = probe_out(x, probe_outs[o], c, i);
+	/* sanity: the derivative of Q along u is M k applied to Du(P), not 0 */
+	CHECK(fabsf(grid[0][0][SN / 2]) > 0.1f && grid[2][0][SN / 2] > 0.01f);
+	grid_deltas(x, P, dPu, dPv);
+
+	/* stencils of every sample, shuffled; the uniform du, dv are wrong on purpose */
+	uint32_t order[SN];
+	shuffle_order(order, SN, 7);
+	float hu[SN], hv[SN];
+	for (uint32_t j = 0; j < SN; j++) {
+		hu[j] = du;
+		hv[j] = dv;
+	}
+	const uint32_t m = SN;
+	CHECK(sl_exec_set_grid(x, 3 * m, 1));
+	CHECK(sl_exec_set_stencil(x, m, hu, hv));
+	CHECK(sl_exec_stencil(x) == m);
+	put_stencil(x, SL_GLOBAL_P, 3, P, dPu, dPv, order, m, NULL);
+	set_uniform(x, SL_GLOBAL_DU, 0.37f);
+	set_uniform(x, SL_GLOBAL_DV, 0.29f);
+	memset(&seen, 0, sizeof(seen));
+	CHECK(sl_exec_run(x, &host));
+	double worst = 0;
+	for (size_t o = 0; o < NPROBE; o++) {
+		if (!strcmp(probe_outs[o], "ddQ"))
+			continue;
+		double e = probe_diff(x, grid, o, order, m, NULL);
+		if (!(e <= 1e-5))
+			fprintf(stderr, "stencil %s: relative difference %g\n", probe_outs[o], e);
+		CHECK(e <= 1e-5);
+		worst = fmax(worst, e);
+	}
+	printf("stencils: Du, Dv, Deriv, area, calculatenormal, filterstep within %.3g "
+	       "of their magnitudes\n", worst);
+	/* second derivatives vanish: the moved points carry their sample's derivative */
+	for (uint32_t j = 0; j < 3 * m; j++)
+		for (int c = 0; c < 3; c++)
+			CHECK(probe_out(x, "ddQ", c, j) == 0.0f);
+	for (uint32_t j = 0; j < m; j++)
+		CHECK(probe_out(x, "dQu", 1, m + j) == probe_out(x, "dQu", 1, j));
+	/* the filter regions the host saw */
+	double terr = 0, serr = 0;
+	for (int k = 0; k < 4; k++)
+		for (uint32_t j = 0; j < m; j++) {
+			uint32_t i = order[j];
+			terr = fmax(terr, fabs(seen.s[k][j] - grid_seen.s[k][i]));
+			terr = fmax(terr, fabs(seen.t[k][j] - grid_seen.t[k][i]));
+			for (int c = 0; c < 3; c++)
+				serr = fmax(serr, fabs(seen.pos[k][c][j] - grid_seen.pos[k][c][i]));
+		}
+	printf("stencils: texture corners within %.3g, shadow corners within %.3g\n", terr, serr);
+	CHECK(terr <= 2e-5);
+	CHECK(serr <= 2e-5);
+	/* ... which are not points: the corners differ from the centre by the grid's steps */
+	CHECK(fabs(grid_seen.s[1][SN / 2] - grid_seen.s[0][SN / 2]) > 0.05);
+
+	/* per-sample steps: twice the step (and twice the move) along u for every third
+	 * sample gives the same derivatives and twice the area */
+	float scale[SN];
+	for (uint32_t j = 0; j < m; j++) {
+		scale[j] = j % 3 ? 1.0f : 2.0f;
+		hu[j] = du * scale[j];
+	}
+	CHECK(sl_exec_set_stencil(x, m, hu, hv));
+	put_stencil(x, SL_GLOBAL_P, 3, P, dPu, dPv, order, m, scale);
+	CHECK(sl_exec_run(x, &host));
+	CHECK(probe_diff(x, grid, 0, order, m, NULL) <= 1e-5);  /* dQu */
+	CHECK(probe_diff(x, grid, 3, order, m, NULL) <= 1e-5);  /* nq */
+	CHECK(probe_diff(x, grid, 2, order, m, scale) <= 1e-5); /* ar */
+
+	/* a subset of the samples: the interior ones, in reverse */
+	uint32_t inner[SN], ni = 0;
+	for (uint32_t iv = SNV - 1; iv-- > 1;)
+		for (uint32_t iu = SNU - 1; iu-- > 1;)
+			inner[ni++] = iv * SNU + iu;
+	for (uint32_t j = 0; j < ni; j++) {
+		hu[j] = du;
+		hv[j] = dv;
+	}
+	CHECK(sl_exec_set_grid(x, 3 * ni, 1));
+	CHECK(sl_exec_set_stencil(x, ni, hu, hv));
+	put_stencil(x, SL_GLOBAL_P, 3, P, dPu, dPv, inner, ni, NULL);
+	CHECK(sl_exec_run(x, &host));
+	for (size_t o = 0; o + 1 < NPROBE; o++)
+		CHECK(probe_diff(x, grid, o, inner, ni, NULL) <= 1e-5);
+
+	/* m = 0: grid derivatives again */
+	CHECK(sl_exec_set_stencil(x, 0, NULL, NULL));
+	CHECK(sl_exec_stencil(x) == 0);
+	CHECK(sl_exec_set_grid(x, SNU, SNV));
+	put_global(x, SL_GLOBAL_P, 3, P, NULL, SN, 0);
+	set_uniform(x, SL_GLOBAL_DU, du);
+	set_uniform(x, SL_GLOBAL_DV, dv);
+	CHECK(sl_exec_run(x, &host));
+	uint32_t ident[SN];
+	for (uint32_t i = 0; i < SN; i++)
+		ident[i] = i;
+	for (size_t o = 0; o < NPROBE; o++)
+		CHECK(probe_diff(x, grid, o, ident, SN, NULL) == 0);
+
+	/* without stencils the same samples in a row give other derivatives */
+	CHECK(sl_exec_set_grid(x, SN, 1));
+	put_global(x, SL_GLOBAL_P, 3, P, order, SN, 0);
+	CHECK(sl_exec_run(x, &host));
+	CHECK(probe_diff(x, grid, 0, order, SN, NULL) > 0.1);
+
+	sl_exec_destroy(x);
+	sl_program_destroy(prog);
+}
+
+/* Wrong grids and steps are refused with a message; the stencil stays as it was. */
+static void test_stencil_errors(void)
+{
+	struct sl_program *prog = sl_compile_string("probe.sl", probe_src, strlen(probe_src), NULL);
+	CHECK(prog != NULL);
+	if (!prog)
+		return;
+	struct sl_exec *x = sl_exec_create(prog, 30);
+	CHECK(x != NULL);
+	if (!x) {
+		sl_program_destroy(prog);
+		return;
+	}
+	float h[11], bad[11];
+	for (int i = 0; i < 11; i++)
+		h[i] = bad[i] = 0.125f;
+	fprintf(stderr, "(four error messages expected)\n");
+	CHECK(!sl_exec_set_stencil(x, 11, h, h));   /* 33 points > 30 */
+	CHECK(sl_exec_stencil(x) == 0);
+	CHECK(sl_exec_set_stencil(x, 10, h, h));
+	CHECK(!sl_exec_set_stencil(x, 5, h, NULL));
+	bad[3] = NAN;
+	CHECK(!sl_exec_set_stencil(x, 4, bad, h));
+	bad[3] = INFINITY;
+	CHECK(!sl_exec_set_stencil(x, 4, h, bad));
+	CHECK(sl_exec_stencil(x) == 10);
+	CHECK(sl_exec_stencil(NULL) == 0);
+	CHECK(!sl_exec_set_stencil(NULL, 1, h, h));
+
+	/* the grid must be 3m x 1 */
+	struct sl_host host = { 0 };
+	struct stencil_run r = { x, &host };
+	char msg[512];
+	bool ok = true;
+	CHECK(sl_exec_set_grid(x, 29, 1));
+	capture_stderr(msg, sizeof(msg), run_stencil_case, &r, &ok);
+	CHECK(!ok);
+	CHECK(strstr(msg, "derivative stencils of 10 samples") != NULL);
+	CHECK(sl_exec_set_grid(x, 10, 3));
+	capture_stderr(msg, sizeof(msg), run_stencil_case, &r, &ok);
+	CHECK(!ok);
+	CHECK(sl_exec_set_grid(x, 30, 1));
+	capture_stderr(msg, sizeof(msg), run_stencil_case, &r, &ok);
+	CHECK(ok);
+	/* m = 0 ignores the steps: grid derivatives on any grid */
+	CHECK(sl_exec_set_stencil(x, 0, bad, NULL));
+	CHECK(sl_exec_set_grid(x, 5, 6));
+	capture_stderr(msg, sizeof(msg), run_stencil_case, &r, &ok);
+	CHECK(ok);
+	sl_exec_destroy(x);
+	sl_program_destroy(prog);
+}
+
+/* A light whose shadow filter region comes from Ps. */
+static const char shadowlight_src[] =
+	"light shl(float intensity = 1; string map = \"smap\")\n"
+	"{\n"
+	"	illuminate(point(0.5, 0.5, 9)) {\n"
+	"		Cl = intensity * (1 - shadow(map, Ps));\n"
+	"	}\n"
+	"}\n";
+
+static const char litsurf_src[] =
+	"surface lit(float Kd = 0.8)\n"
+	"{\n"
+	"	Oi = 1;\n"
+	"	Ci = Kd * diffuse(normalize(N));\n"
+	"}\n";
+
+struct lit_case {
+	struct sl_exec *x;
+	struct sl_lighthost *lh;
+	int runs;
+};
+
+static bool run_lit_case(void *arg)
+{
+	struct lit_case *c = arg;
+	bool ok = true;
+	for (int k = 0; k < c->runs; k++)
+		ok = sl_exec_run(c->x, &c->lh->host) && ok;
+	return ok;
+}
+
+/*
+ * Lights run through the light host take the surface's stencils: a shadow's
+ * filter region of Ps is the grid's for every sample, and the light goes
+ * back to grid derivatives with the surface.
+ */
+static void test_stencil_lights(void)
+{
+	struct sl_program *lp = sl_compile_string("shl.sl", shadowlight_src,
+						  strlen(shadowlight_src), NULL);
+	struct sl_program *sp = sl_compile_string("lit.sl", litsurf_src, strlen(litsurf_src), NULL);
+	CHECK(lp && sp);
+	struct sl_exec *sx = sp ? sl_exec_create(sp, 3 * SN) : NULL;
+	struct sl_exec *lx = lp ? sl_exec_create(lp, 3 * SN) : NULL;
+	struct sl_exec *small = lp ? sl_exec_create(lp, SN) : NULL;
+	CHECK(sx && lx && small);
+	if (!sx || !lx || !small)
+		goto out;
+	static struct seen seen, grid_seen;
+	static float P[3 * SN], N[3 * SN], dPu[3 * SN], dPv[3 * SN], grid_ci[3][SN];
+	sphere_patch(P, N);
+	const float du = 1.0f / (SNU - 1), dv = 1.0f / (SNV - 1);
+	struct sl_lighthost lh;
+	sl_lighthost_init(&lh, &lx, 1);
+	lh.owner = &seen;
+	lh.host.shadow = seen_shadow_lh;
+
+	CHECK(sl_exec_set_grid(sx, SNU, SNV));
+	put_global(sx, SL_GLOBAL_P, 3, P, NULL, SN, 0);
+	put_global(sx, SL_GLOBAL_N, 3, N, NULL, SN, 0);
+	memset(&seen, 0, sizeof(seen));
+	CHECK(sl_exec_run(sx, &lh.host));
+	CHECK(seen.nshadow == 1);
+	CHECK(sl_exec_stencil(lx) == 0);
+	grid_seen = seen;
+	bool vary;
+	const float *ci = sl_exec_global(sx, SL_GLOBAL_CI, &vary);
+	for (int c = 0; c < 3; c++)
+		for (uint32_t i = 0; i < SN; i++)
+			grid_ci[c][i] = ci[(size_t)c * sx->stride + i];
+	CHECK(grid_ci[0][SN / 2] > 0.05f && grid_ci[0][SN / 2] < 0.8f);  /* shadowed in part */
+	grid_deltas(sx, P, dPu, dPv);
+
+	uint32_t order[SN];
+	shuffle_order(order, SN, 11);
+	float hu[SN], hv[SN];
+	for (uint32_t j = 0; j < SN; j++) {
+		hu[j] = du;
+		hv[j] = dv;
+	}
+	const uint32_t m = SN;
+	CHECK(sl_exec_set_grid(sx, 3 * m, 1));
+	CHECK(sl_exec_set_stencil(sx, m, hu, hv));
+	put_stencil(sx, SL_GLOBAL_P, 3, P, dPu, dPv, order, m, NULL);
+	put_stencil(sx, SL_GLOBAL_N, 3, N, NULL, NULL, order, m, NULL);
+	memset(&seen, 0, sizeof(seen));
+	CHECK(sl_exec_run(sx, &lh.host));
+	CHECK(seen.nshadow == 1);
+	CHECK(sl_exec_stencil(lx) == m);
+	double perr = 0, cerr = 0;
+	for (uint32_t j = 0; j < m; j++) {
+		uint32_t i = order[j];
+		for (int c = 0; c < 3; c++) {
+			for (int k = 0; k < 4; k++)
+				perr = fmax(perr, fabs(seen.pos[k][c][j] - grid_seen.pos[k][c][i]));
+			cerr = fmax(cerr, fabs(ci[(size_t)c * sx->stride + j] - grid_ci[c][i]));
+		}
+	}
+	printf("stencils through the light host: shadow corners within %.3g, Ci within %.3g\n",
+	       perr, cerr);
+	CHECK(perr <= 2e-5);
+	CHECK(cerr <= 1e-5);
+
+	/* back to the grid: the light follows */
+	CHECK(sl_exec_set_stencil(sx, 0, NULL, NULL));
+	CHECK(sl_exec_set_grid(sx, SNU, SNV));
+	put_global(sx, SL_GLOBAL_P, 3, P, NULL, SN, 0);
+	put_global(sx, SL_GLOBAL_N, 3, N, NULL, SN, 0);
+	CHECK(sl_exec_run(sx, &lh.host));
+	CHECK(sl_exec_stencil(lx) == 0);
+	for (uint32_t i = 0; i < SN; i++)
+		CHECK(ci[i] == grid_ci[0][i]);
+
+	/* a light too small for the stencils' 3m points: left out, with one warning */
+	struct sl_lighthost lh2;
+	sl_lighthost_init(&lh2, &small, 1);
+	lh2.owner = &seen;
+	lh2.host.shadow = seen_shadow_lh;
+	CHECK(sl_exec_set_grid(sx, 3 * m, 1));
+	CHECK(sl_exec_set_stencil(sx, m, hu, hv));
+	put_stencil(sx, SL_GLOBAL_P, 3, P, dPu, dPv, order, m, NULL);
+	put_stencil(sx, SL_GLOBAL_N, 3, N, NULL, NULL, order, m, NULL);
+	struct lit_case lc = { sx, &lh2, 2 };
+	char msg[1024];
+	bool ok = false;
+	capture_stderr(msg, sizeof(msg), run_lit_case, &lc, &ok);
+	CHECK(ok);
+	const char *w = strstr(msg, "has room for 63 points");
+	CHECK(w != NULL);
+	CHECK(w && !strstr(w + 1, "has room for"));
+	CHECK(strstr(msg, "shl") != NULL);
+	CHECK(ci[0] == 0.0f);
+out:
+	sl_exec_destroy(sx);
+	sl_exec_destroy(lx);
+	sl_exec_destroy(small);
+	sl_program_destroy(sp);
+	sl_program_destroy(lp);
+}
+
 int main(void)
 {
 	RUN(test_arith);
@@ -1870,5 +2444,8 @@ int main(void)
 	RUN(test_illuminance_flow);
 	RUN(test_light_recursion);
 	RUN(test_loop_guard);
+	RUN(test_stencil_deriv);
+	RUN(test_stencil_errors);
+	RUN(test_stencil_lights);
 	return test_finish();
 }

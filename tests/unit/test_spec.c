@@ -10,6 +10,7 @@
 #include "spec.h"
 #include "builtin.h"
 #include "exec.h"
+#include "exec_impl.h"
 #include "lighthost.h"
 #include "test.h"
 
@@ -1131,6 +1132,412 @@ static void test_dynamic_errors(void)
 	sl_program_destroy(p);
 }
 
+/* ------------------------------------------------------------------------ */
+/* Derivatives the dynamic part takes                                        */
+
+/* How many cached values are marked; *marked_p: whether the cached P is one of them. */
+static uint32_t count_marked(const struct sl_spec *s, bool *marked_p)
+{
+	uint32_t n = 0;
+	*marked_p = false;
+	for (uint32_t k = 0; k < s->ncached; k++) {
+		if (!s->cached_deriv[k])
+			continue;
+		n++;
+		if (s->cached[k] == s->prog->global_reg[SL_GLOBAL_P])
+			*marked_p = true;
+	}
+	CHECK(s->needs_stencil == (n > 0));
+	return n;
+}
+
+/* Is the cached value named @name (a variable or global) marked? -1 if it is not cached. */
+static int marked(const struct sl_spec *s, const char *name)
+{
+	for (uint32_t k = 0; k < s->ncached; k++) {
+		const struct sl_reg *r = &s->prog->regs[s->cached[k]];
+		if (r->name && !strcmp(r->name, name))
+			return s->cached_deriv[k];
+	}
+	return -1;
+}
+
+/* Does the dynamic part run lights (a lighting function or an illuminance statement)? */
+static bool runs_lights(const struct sl_spec *s)
+{
+	for (uint32_t i = 0; i < s->prog->ncode; i++) {
+		const struct sl_insn *in = &s->prog->code[i];
+		if (s->keep[i] && (in->op == SL_OP_ILLUMINANCE ||
+				   (in->op == SL_OP_CALL &&
+				    (sl_builtins[in->bi].flags & SL_BIF_LIGHTS))))
+			return true;
+	}
+	return false;
+}
+
+/*
+ * The library's surfaces: lights are the only derivatives their dynamic
+ * parts take, so with SL_SPEC_LIGHT_DERIVATIVES exactly the cached P is
+ * marked where lights run, and without it nothing.
+ */
+static void test_deriv_library(void)
+{
+	int lit = 0;
+	for (size_t k = 0; k < NSURF; k++) {
+		struct sl_program *p = load(surfaces[k]);
+		CHECK(p != NULL);
+		if (!p)
+			continue;
+		static const unsigned flagsets[] = { 0, SL_SPEC_CACHE_PARAMS };
+		for (int f = 0; f < 2; f++) {
+			struct sl_spec *s = sl_specialize_ex(p, NULL, 0, flagsets[f], NULL);
+			struct sl_spec *sd = sl_specialize_ex(
+				p, NULL, 0, flagsets[f] | SL_SPEC_LIGHT_DERIVATIVES, NULL);
+			CHECK(s && sd);
+			if (s && sd) {
+				bool mp;
+				CHECK(count_marked(s, &mp) == 0);
+				CHECK(!s->needs_stencil);
+				uint32_t n = count_marked(sd, &mp);
+				bool lights = runs_lights(sd);
+				CHECK(n == (lights ? 1u : 0u));
+				CHECK(mp == lights);
+				CHECK(sd->ncached == s->ncached);
+				lit += lights;
+			}
+			sl_spec_destroy(s);
+			sl_spec_destroy(sd);
+		}
+		sl_program_destroy(p);
+	}
+	CHECK(lit >= 8);  /* matte, metal, plastic, paintedplastic, shinymetal: twice */
+
+	/* plastic with editable parameters too: still only P */
+	struct sl_program *p = load("plastic");
+	if (!p)
+		return;
+	const char *dyn[] = { "Kd", "roughness" };
+	struct sl_spec *s = sl_specialize_ex(p, dyn, 2, SL_SPEC_LIGHT_DERIVATIVES, NULL);
+	CHECK(s != NULL);
+	if (s) {
+		bool mp;
+		CHECK(count_marked(s, &mp) == 1 && mp);
+		CHECK(marked(s, "P") == 1);
+		CHECK(marked(s, "Nf") == 0);
+	}
+	sl_spec_destroy(s);
+	sl_program_destroy(p);
+}
+
+/*
+ * Lights run at a position the dynamic part computes: what the position is
+ * computed from is marked (P and s through the dynamic amp), the values
+ * beside it (the normal, t) are not.
+ */
+static void test_deriv_light_position(void)
+{
+	const char *src =
+		"surface offs(float amp = 0.1; float Kd = 1)\n"
+		"{\n"
+		"	normal Nf = normalize(N);\n"
+		"	point Q = P + vector(s * amp, 0, 0);\n"
+		"	color C = 0;\n"
+		"	illuminance(Q, Nf, 1.5708)\n"
+		"		C += Cl * (normalize(L) . Nf);\n"
+		"	Oi = 1;\n"
+		"	Ci = Kd * C * t;\n"
+		"}\n";
+	struct sl_program *p = compile(src);
+	if (!p)
+		return;
+	const char *dyn[] = { "amp" };
+	struct sl_spec *s = sl_specialize_ex(p, dyn, 1, SL_SPEC_LIGHT_DERIVATIVES, NULL);
+	CHECK(s != NULL);
+	if (s) {
+		bool mp;
+		CHECK(count_marked(s, &mp) == 2);
+		CHECK(marked(s, "P") == 1);
+		CHECK(marked(s, "s") == 1);
+		CHECK(marked(s, "Nf") == 0);
+		CHECK(marked(s, "t") == 0);
+	}
+	sl_spec_destroy(s);
+	/* without the flag the lights' derivatives are not asked for */
+	s = sl_specialize_ex(p, dyn, 1, 0, NULL);
+	if (s) {
+		bool mp;
+		CHECK(count_marked(s, &mp) == 0);
+	}
+	sl_spec_destroy(s);
+	/* amp static: Q is cached whole, and it is what is marked */
+	s = sl_specialize_ex(p, NULL, 0, SL_SPEC_LIGHT_DERIVATIVES, NULL);
+	CHECK(s != NULL);
+	if (s) {
+		bool mp;
+		CHECK(count_marked(s, &mp) == 1);
+		CHECK(marked(s, "Q") == 1);
+		CHECK(marked(s, "s") == -1);
+	}
+	sl_spec_destroy(s);
+	sl_program_destroy(p);
+}
+
+/*
+ * Du of a dynamic value is not dynamic code: the GPU cannot take it, so it
+ * is computed at bake time (cache_required) and its result is cached like
+ * any static value; the dynamic part takes no derivative, nothing is marked.
+ */
+static void test_deriv_static_du(void)
+{
+	const char *src =
+		"surface dus(float Kd = 1)\n"
+		"{\n"
+		"	Oi = 1;\n"
+		"	Ci = Cs * Du(s * Kd) + Kd * N;\n"
+		"}\n";
+	struct sl_program *p = compile(src);
+	if (!p)
+		return;
+	const char *dyn[] = { "Kd" };
+	struct sl_spec *s = sl_specialize_ex(p, dyn, 1, SL_SPEC_LIGHT_DERIVATIVES, NULL);
+	CHECK(s != NULL);
+	if (s) {
+		bool mp;
+		CHECK(!kept_call(s, "Du"));
+		CHECK(s->ncache_required == 1);
+		CHECK(count_marked(s, &mp) == 0);
+		CHECK(marked(s, "N") == 0);
+	}
+	sl_spec_destroy(s);
+	sl_program_destroy(p);
+}
+
+/* Which shaders take derivatives of varying values: the shadowing lights do. */
+static void test_takes_derivatives(void)
+{
+	static const struct {
+		const char *name;
+		bool takes;
+	} lib[] = {
+		{ "shadowspot", true }, { "uberlight", true }, { "pointlight", false },
+		{ "spotlight", false }, { "distantlight", false }, { "ambientlight", false },
+		{ "plastic", false }, { "paintedplastic", true }, { "shinymetal", true },
+	};
+	for (size_t k = 0; k < sizeof(lib) / sizeof(lib[0]); k++) {
+		struct sl_program *p = load(lib[k].name);
+		CHECK(p != NULL);
+		if (!p)
+			continue;
+		if (sl_program_takes_derivatives(p) != lib[k].takes)
+			fprintf(stderr, "%s: takes derivatives: expected %d\n", lib[k].name,
+				lib[k].takes);
+		CHECK(sl_program_takes_derivatives(p) == lib[k].takes);
+		sl_program_destroy(p);
+	}
+	static const struct {
+		const char *src;
+		bool takes;
+	} small[] = {
+		{ "light a(string m = \"x\") { illuminate(point(0, 0, 0)) Cl = 1 - shadow(m, Ps); }",
+		  true },
+		/* the empty name looks nothing up */
+		{ "light a() { illuminate(point(0, 0, 0)) Cl = 1 - shadow(\"\", Ps); }", false },
+		/* a uniform position: no derivative */
+		{ "light a() { uniform point q = point(1, 2, 3); illuminate(point(0, 0, 0)) "
+		  "Cl = 1 - shadow(\"m\", q); }", false },
+		/* explicit corners: no filter region to size */
+		{ "light a() { illuminate(point(0, 0, 0)) Cl = 1 - shadow(\"m\", Ps, Ps + 0.1, Ps, "
+		  "Ps - 0.1); }", false },
+		{ "light a() { illuminate(point(0, 0, 0)) Cl = Du(Ps) . Dv(Ps); }", true },
+		{ "light a() { illuminate(point(0, 0, 0)) Cl = filterstep(0.5, xcomp(Ps)); }", true },
+		{ "light a() { illuminate(point(0, 0, 0)) Cl = filterstep(0.5, xcomp(Ps), "
+		  "xcomp(Ps) + 1); }", false },
+		{ "light a() { illuminate(point(0, 0, 0)) Cl = area(Ps); }", true },
+		{ "light a() { illuminate(point(0, 0, 0)) Cl = color texture(\"t\", xcomp(Ps), 0); }",
+		  true },
+	};
+	for (size_t k = 0; k < sizeof(small) / sizeof(small[0]); k++) {
+		struct sl_program *p = compile(small[k].src);
+		CHECK(p != NULL);
+		if (!p)
+			continue;
+		if (sl_program_takes_derivatives(p) != small[k].takes)
+			fprintf(stderr, "%s: takes derivatives: expected %d\n", small[k].src,
+				small[k].takes);
+		CHECK(sl_program_takes_derivatives(p) == small[k].takes);
+		sl_program_destroy(p);
+	}
+	CHECK(!sl_program_takes_derivatives(NULL));
+}
+
+/* A shadow lookup whose answer is the size of its filter region (so the region shows in Ci). */
+static bool region_shadow(void *user, const struct sl_tex_lookup *q)
+{
+	(void)user;
+	for (uint32_t i = 0; i < q->n; i++) {
+		float e[2] = { 0, 0 };
+		for (int c = 0; c < 3; c++) {
+			size_t o = (size_t)c * q->stride + i;
+			float a = q->pos[1][o] - q->pos[0][o], b = q->pos[3][o] - q->pos[0][o];
+			e[0] += a * a;
+			e[1] += b * b;
+		}
+		q->out[i] = fminf(1.0f, 1.5f * (sqrtf(e[0]) + sqrtf(e[1])));
+	}
+	return true;
+}
+
+static const float identity_mat[1][16] = {
+	{ 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 },
+};
+
+static bool run_shadowed(struct sl_exec *x, struct sl_exec **lights)
+{
+	struct sl_lighthost lh;
+	sl_lighthost_init(&lh, lights, 1);
+	lh.light_shader_mats = identity_mat;
+	lh.host.shadow = region_shadow;
+	return sl_exec_run(x, &lh.host);
+}
+
+/* The shading inputs of a sphere patch on the NU x NV grid. */
+static void sphere_inputs(struct sl_exec *x)
+{
+	CHECK(sl_exec_set_grid(x, NU, NV));
+	uint32_t st = sl_exec_stride(x);
+	for (int g = 0; g < SL_GLOBAL_COUNT; g++) {
+		bool vary;
+		float *d = sl_exec_global(x, (enum sl_global)g, &vary);
+		if (!d || computed_global(g))
+			continue;
+		int nc = sl_type_ncomp(sl_global_type((enum sl_global)g).base);
+		for (uint32_t i = 0; i < (vary ? NPTS : 1u); i++) {
+			float uu = (float)(i % NU) / (NU - 1), vv = (float)(i / NU) / (NV - 1);
+			float th = 0.5f + 0.6f * vv, ph = 0.3f + 0.8f * uu;
+			float n[3] = { sinf(th) * cosf(ph), sinf(th) * sinf(ph), cosf(th) };
+			float v[3] = { 0, 0, 0 };
+			for (int c = 0; c < 3; c++)
+				switch (g) {
+				case SL_GLOBAL_P: v[c] = 2 * n[c] + (c == 2 ? 1.0f : 0.0f); break;
+				case SL_GLOBAL_N: case SL_GLOBAL_NG: v[c] = n[c]; break;
+				case SL_GLOBAL_I: v[c] = 2 * n[c] - (c == 2 ? 9.0f : 0.0f); break;
+				case SL_GLOBAL_E: v[c] = c == 2 ? 10.0f : 0.0f; break;
+				case SL_GLOBAL_CS: v[c] = 0.9f - 0.2f * (float)c; break;
+				case SL_GLOBAL_OS: v[c] = 1; break;
+				case SL_GLOBAL_S: case SL_GLOBAL_U: v[c] = uu; break;
+				case SL_GLOBAL_T: case SL_GLOBAL_V: v[c] = vv; break;
+				case SL_GLOBAL_DU: v[c] = 1.0f / (NU - 1); break;
+				case SL_GLOBAL_DV: v[c] = 1.0f / (NV - 1); break;
+				case SL_GLOBAL_NCOMPS: v[c] = 3; break;
+				default: break;
+				}
+			for (int c = 0; c < nc; c++)
+				d[(size_t)c * (vary ? st : 1) + (vary ? i : 0)] = v[c];
+		}
+	}
+}
+
+/*
+ * What a bake and a CPU preview will do: plastic under a shadowing
+ * spotlight, the caching program on a sphere patch's grid, then the dynamic
+ * program on stencils of the samples in a shuffled order, the moved values
+ * of each marked cached value being value + its change over one grid step
+ * (sl_exec_delta on the caching grid), the others plain copies. Ci is the
+ * original shader's on the grid; without stencils it is not.
+ */
+static void test_stencil_bake(void)
+{
+	struct sl_program *p = load("plastic"), *lp = load("shadowspot");
+	CHECK(p && lp);
+	struct sl_spec *s = p ? sl_specialize_ex(p, NULL, 0, SL_SPEC_CACHE_PARAMS |
+						 SL_SPEC_LIGHT_DERIVATIVES, stderr) : NULL;
+	struct sl_exec *orig = p ? sl_exec_create(p, NPTS) : NULL;
+	struct sl_exec *ce = s ? sl_exec_create(s->caching, NPTS) : NULL;
+	struct sl_exec *de = s ? sl_exec_create(s->dynamic, 3 * NPTS) : NULL;
+	struct sl_exec *lx = lp ? sl_exec_create(lp, 3 * NPTS) : NULL;
+	CHECK(s && orig && ce && de && lx);
+	if (!s || !orig || !ce || !de || !lx)
+		goto out;
+	CHECK(s->needs_stencil);
+	CHECK(sl_program_takes_derivatives(lp));
+	set3(lx, "from", 0.5f, 0.8f, 9);
+	set3(lx, "to", 0.5f, 0.8f, 0);
+	set1(lx, "coneangle", 1.2f);
+	set1(lx, "intensity", 60);
+	CHECK(sl_exec_set_param_string(lx, "shadowname", "smap"));
+
+	sphere_inputs(orig);
+	CHECK(run_shadowed(orig, &lx));
+	sphere_inputs(ce);
+	CHECK(run_shadowed(ce, NULL));
+
+	const uint32_t m = NPTS;
+	uint32_t order[NPTS], order3[3 * NPTS];
+	rng_seed(21);
+	shuffle(order, m);
+	for (uint32_t j = 0; j < 3 * m; j++)
+		order3[j] = order[j % m];
+	CHECK(sl_spec_copy_cache(s, de, ce, order3, 3 * m));
+	uint32_t moved = 0;
+	for (uint32_t k = 0; k < s->ncached; k++) {
+		int32_t r = s->cached[k];
+		if (!s->cached_deriv[k] || !p->regs[r].varying)
+			continue;
+		int nc = sl_reg_ncomp(&p->regs[r]);
+		for (int c = 0; c < nc; c++) {
+			float du[NPTS], dv[NPTS];
+			sl_exec_delta(ce, sl_exec_reg(ce, r) + (size_t)c * sl_exec_stride(ce), du, dv);
+			float *d = sl_exec_reg(de, r) + (size_t)c * sl_exec_stride(de);
+			for (uint32_t j = 0; j < m; j++) {
+				d[m + j] += du[order[j]];
+				d[2 * m + j] += dv[order[j]];
+			}
+		}
+		moved++;
+	}
+	CHECK(moved == 1);
+	float hu[NPTS], hv[NPTS];
+	for (uint32_t j = 0; j < m; j++) {
+		hu[j] = 1.0f / (NU - 1);
+		hv[j] = 1.0f / (NV - 1);
+	}
+	CHECK(sl_exec_set_stencil(de, m, hu, hv));
+	CHECK(run_shadowed(de, &lx));
+	int32_t ci = p->global_reg[SL_GLOBAL_CI];
+	double err = 0, big = 0;
+	for (uint32_t j = 0; j < m; j++)
+		for (int c = 0; c < 3; c++) {
+			float want = sl_exec_reg(orig, ci)[(size_t)c * sl_exec_stride(orig) + order[j]];
+			float got = sl_exec_reg(de, ci)[(size_t)c * sl_exec_stride(de) + j];
+			err = fmax(err, fabs((double)got - want) / fmax(1.0, fabs(want)));
+			big = fmax(big, want);
+		}
+	/* without stencils: the samples in a row are a grid of garbage derivatives */
+	CHECK(sl_exec_set_stencil(de, 0, NULL, NULL));
+	CHECK(sl_spec_copy_cache(s, de, ce, order, m));
+	CHECK(run_shadowed(de, &lx));
+	double bad = 0;
+	for (uint32_t j = 0; j < m; j++)
+		for (int c = 0; c < 3; c++) {
+			float want = sl_exec_reg(orig, ci)[(size_t)c * sl_exec_stride(orig) + order[j]];
+			float got = sl_exec_reg(de, ci)[(size_t)c * sl_exec_stride(de) + j];
+			bad = fmax(bad, fabs((double)got - want) / fmax(1.0, fabs(want)));
+		}
+	printf("stencil bake: plastic under a shadowing spot, Ci max %.3g, on stencils within "
+	       "%.2e (tol %.0e), without them %.2e\n", big, err, DYN_TOL, bad);
+	CHECK(big > 0.1);
+	CHECK(err <= DYN_TOL);
+	CHECK(bad > 1e-2);
+out:
+	sl_exec_destroy(orig);
+	sl_exec_destroy(ce);
+	sl_exec_destroy(de);
+	sl_exec_destroy(lx);
+	sl_spec_destroy(s);
+	sl_program_destroy(p);
+	sl_program_destroy(lp);
+}
+
 int main(void)
 {
 	RUN(test_marble_lights_only);
@@ -1144,5 +1551,10 @@ int main(void)
 	RUN(test_dynamic_marble);
 	RUN(test_dynamic_any_order);
 	RUN(test_dynamic_errors);
+	RUN(test_deriv_library);
+	RUN(test_deriv_light_position);
+	RUN(test_deriv_static_du);
+	RUN(test_takes_derivatives);
+	RUN(test_stencil_bake);
 	return test_finish();
 }
