@@ -128,7 +128,56 @@ static bool set_params(struct resolver *r, struct sl_exec *x, const cJSON *param
 	return true;
 }
 
-static bool load_lights(struct resolver *r)
+/* Apply the edits of light @L (named @name) after its baked parameters. */
+static bool apply_edits(struct resolver *r, struct light *L, const char *name,
+			const struct resolve_opts *o)
+{
+	for (size_t i = 0; o && i < o->nedits; i++) {
+		const struct resolve_edit *e = &o->edits[i];
+		if (strcmp(e->light, name))
+			continue;
+		int k = sl_program_find_param(L->prog, e->param);
+		if (k < 0 || L->prog->params[k].output) {
+			fprintf(r->diag, "relight: error: light '%s' (shader '%s') has no parameter "
+				"'%s'\n", name, L->prog->name, e->param);
+			return false;
+		}
+		const struct sl_type *ty = &L->prog->params[k].type;
+		uint32_t nc = (uint32_t)sl_type_ncomp(ty->base);
+		if (ty->base == SL_TYPE_STRING || ty->arraylen >= 0 || nc == 0) {
+			fprintf(r->diag, "relight: error: light '%s': parameter '%s' is a %s%s; only "
+				"float, colour, point, vector, normal and matrix parameters can be "
+				"edited\n", name, e->param, sl_basetype_name(ty->base),
+				ty->arraylen >= 0 ? " array" : "");
+			return false;
+		}
+		float v[16];
+		uint32_t n = e->nvalues;
+		if (n == 1 && ty->base == SL_TYPE_COLOR) {
+			v[0] = v[1] = v[2] = e->values[0];
+			n = 3;
+		} else {
+			memcpy(v, e->values, sizeof(v));
+		}
+		if (n != nc) {
+			fprintf(r->diag, "relight: error: light '%s': parameter '%s' is a %s and takes "
+				"%u value%s, not %u\n", name, e->param, sl_basetype_name(ty->base), nc,
+				nc == 1 ? "" : "s", e->nvalues);
+			return false;
+		}
+		for (uint32_t c = 0; c < n; c++)
+			if (!isfinite(v[c])) {
+				fprintf(r->diag, "relight: error: light '%s': parameter '%s' needs finite "
+					"values\n", name, e->param);
+				return false;
+			}
+		if (!sl_exec_set_param(L->x, e->param, v, n))
+			return false;
+	}
+	return true;
+}
+
+static bool load_lights(struct resolver *r, const struct resolve_opts *o)
 {
 	const cJSON *ls = cJSON_GetObjectItemCaseSensitive(r->meta, "lights");
 	int n = cJSON_GetArraySize(ls);
@@ -148,6 +197,25 @@ static bool load_lights(struct resolver *r)
 		L->x = sl_exec_create(L->prog, BATCH);
 		if (!L->x || !set_params(r, L->x, cJSON_GetObjectItemCaseSensitive(l, "params")))
 			return false;
+		const char *name = str(l, "name");
+		if (!apply_edits(r, L, name ? name : "", o))
+			return false;
+	}
+	/* every edit names a light of the shot */
+	for (size_t i = 0; o && i < o->nedits; i++) {
+		bool found = false;
+		cJSON_ArrayForEach(l, ls) {
+			const char *name = str(l, "name");
+			found = found || (name && !strcmp(name, o->edits[i].light));
+		}
+		if (!found) {
+			fprintf(r->diag, "relight: error: %s: no light named '%s'; the shot's lights "
+				"are:", r->path, o->edits[i].light);
+			cJSON_ArrayForEach(l, ls)
+				fprintf(r->diag, " %s", str(l, "name") ? str(l, "name") : "?");
+			fputc('\n', r->diag);
+			return false;
+		}
 	}
 	return true;
 }
@@ -487,7 +555,7 @@ bool resolve_cpu(const char *path, const struct resolve_opts *opts, struct resol
 		sl_m44_inverse(c2w, r.w2c);
 		r.tex = reyes_texsys_create(tp, c2w, r.diag);
 		r.Ci = rl_xcalloc(r.nsamples * 3 + 1, sizeof(float));
-		ok = load_lights(&r);
+		ok = load_lights(&r, opts);
 	}
 	out->load_seconds = now() - t0;
 	double t1 = now();

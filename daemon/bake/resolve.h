@@ -11,6 +11,15 @@
 #include <stdint.h>
 #include <stdio.h>
 
+/** A light edit: light @light's parameter @param takes @values. */
+struct resolve_edit {
+	const char *light;         /* the light's name (its RIB handle) */
+	const char *param;
+	float values[16];
+	uint32_t nvalues;          /* 1 for a float; 3 for a colour, point or vector (1 broadcasts
+				      to a colour); 16 for a matrix */
+};
+
 struct resolve_opts {
 	FILE *diag;                /* NULL: stderr */
 	const char *texture_path;  /* where shadow maps and textures are found ("." when NULL) */
@@ -19,6 +28,11 @@ struct resolve_opts {
 	 * 1, per 2x2 block; 2, one entry per pixel; 3 (RESOLVE_FINAL), all
 	 * entries. Only the samples the level uses are shaded. */
 	int level;
+	/* Light edits applied over the baked parameters. An unknown light or
+	 * parameter, a string or array parameter, a wrong count or a value that
+	 * is not finite is refused with a clear error. */
+	const struct resolve_edit *edits;
+	size_t nedits;
 };
 
 #define RESOLVE_FINAL 3

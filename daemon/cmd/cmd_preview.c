@@ -7,6 +7,7 @@
 #include "resolve.h"
 #include "texture.h"
 
+#include <errno.h>
 #include <getopt.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -17,7 +18,8 @@
 static void usage(FILE *out)
 {
 	fprintf(out,
-		"usage: relight preview --cpu [--level N|final] [-o OUT.exr] [--json] SHOT.exr\n"
+		"usage: relight preview --cpu [--set LIGHT.PARAM=V[,V,V]]... [--level N|final]\n"
+		"                       [-o OUT.exr] [--json] SHOT.exr\n"
 		"\n"
 		"Relight a shot file written by 'relight bake' and write the image. With --cpu\n"
 		"every shading sample is shaded by its surface's dynamic program on relight's\n"
@@ -33,6 +35,13 @@ static void usage(FILE *out)
 		"                       (the heaviest); 3 or final (default), every sample\n"
 		"                       with its antialiasing, motion blur and transparency\n"
 		"                       weight. Only the samples a level uses are shaded.\n"
+		"  --set LIGHT.PARAM=V[,V,V]\n"
+		"                       Edit a light: LIGHT is its name (the RIB handle, as\n"
+		"                       'relight info' lists them), PARAM one of its shader's\n"
+		"                       parameters; one value for a float (or a grey colour),\n"
+		"                       three for a colour, point or vector (points and\n"
+		"                       vectors in the light's own space, as in the RIB),\n"
+		"                       sixteen for a matrix. Repeatable.\n"
 		"  -o, --output FILE    The image (OpenEXR, RGBA float; default: SHOT with\n"
 		"                       .shot.exr replaced by .preview.exr)\n"
 		"  --json               Print timings and counts as one JSON object\n"
@@ -44,6 +53,36 @@ static void usage(FILE *out)
 }
 
 #define usage_error(...) cmd_usage_error("preview", __VA_ARGS__)
+
+/* LIGHT.PARAM=V[,V...] into @e (pointing into @arg, which it modifies). */
+static bool parse_edit(char *arg, struct resolve_edit *e)
+{
+	char *eq = strchr(arg, '=');
+	if (!eq)
+		return false;
+	*eq = '\0';
+	char *dot = strrchr(arg, '.');
+	if (!dot || dot == arg || !dot[1])
+		return false;
+	*dot = '\0';
+	e->light = arg;
+	e->param = dot + 1;
+	e->nvalues = 0;
+	char *p = eq + 1;
+	for (;;) {
+		char *end;
+		errno = 0;
+		float v = strtof(p, &end);
+		if (end == p || errno == ERANGE || e->nvalues == 16)
+			return false;
+		e->values[e->nvalues++] = v;
+		if (*end == '\0')
+			return true;
+		if (*end != ',')
+			return false;
+		p = end + 1;
+	}
+}
 
 static char *default_output(const char *shot)
 {
@@ -60,11 +99,16 @@ int cmd_preview(int argc, char **argv)
 {
 	bool cpu = false, json = false, quiet = false;
 	int level = RESOLVE_FINAL;
+	enum { MAX_EDITS = 256, MAX_EDIT_LEN = 256 };
+	struct resolve_edit edits[MAX_EDITS];
+	char copies[MAX_EDITS][MAX_EDIT_LEN];
+	size_t nedits = 0;
 	const char *output = NULL;
 	static const struct option long_opts[] = {
 		{ "help", no_argument, NULL, 'h' },
 		{ "cpu", no_argument, NULL, 'c' },
 		{ "level", required_argument, NULL, 'l' },
+		{ "set", required_argument, NULL, 's' },
 		{ "output", required_argument, NULL, 'o' },
 		{ "json", no_argument, NULL, 'j' },
 		{ "quiet", no_argument, NULL, 'q' },
@@ -92,6 +136,18 @@ int cmd_preview(int argc, char **argv)
 						   optarg);
 			}
 			break;
+		case 's':
+			if (nedits == MAX_EDITS)
+				return usage_error("at most %d --set edits", MAX_EDITS);
+			if (strlen(optarg) >= MAX_EDIT_LEN)
+				return usage_error("--set '%.40s...' is too long", optarg);
+			memset(&edits[nedits], 0, sizeof(edits[nedits]));
+			strcpy(copies[nedits], optarg);
+			if (!parse_edit(copies[nedits], &edits[nedits]))
+				return usage_error("--set needs LIGHT.PARAM=V[,V,...] with up to 16 "
+						   "numbers, not '%s'", optarg);
+			nedits++;
+			break;
 		case 'o':
 			output = optarg;
 			break;
@@ -117,7 +173,8 @@ int cmd_preview(int argc, char **argv)
 	char *out_alloc = output ? NULL : default_output(shot);
 	if (!output)
 		output = out_alloc;
-	struct resolve_opts ro = { .diag = stderr, .texture_path = ".", .level = level };
+	struct resolve_opts ro = { .diag = stderr, .texture_path = ".", .level = level,
+				   .edits = edits, .nedits = nedits };
 	struct resolve_result res;
 	bool ok = output && resolve_cpu(shot, &ro, &res);
 	if (ok) {

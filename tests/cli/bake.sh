@@ -254,6 +254,51 @@ assert sum(v for k, v in hf["bytes"].items() if k.startswith("samples.")) < \
        sum(v for k, v in ff["bytes"].items() if k.startswith("samples.")), (hf["bytes"], ff["bytes"])
 PY
 
+# Light edits: the CPU preview of the shot with --set edits against a render
+# of the RIB edited the same way, within the same tolerance.
+run "edited bake" bash -c "cd '$work' && '$relight' bake -q -o edit.shot.exr two.rib"
+expect_status 0
+sed -e 's/LightSource "distantlight" 1/LightSource "distantlight" 1 "lightcolor" [1 0.5 0.25] "from" [1 -1 1]/' \
+    -e 's/"from" \[0 2 2\] "intensity" 4/"from" [-1 1 3] "intensity" 9.5/' \
+    "$work/two.rib" >"$work/edited.rib"
+checks=$((checks + 1))
+grep -q '9.5' "$work/edited.rib" && grep -q '0.25' "$work/edited.rib" || fail "the RIB edit did not apply"
+run "edited render" bash -c "cd '$work' && '$relight' render -q -o edref.exr edited.rib"
+expect_status 0
+run "preview --set" bash -c "cd '$work' && '$relight' preview -q --cpu --set 1.lightcolor=1,0.5,0.25 --set 1.from=1,-1,1 --set 2.from=-1,1,3 --set 2.intensity=9.5 -o edprev.exr edit.shot.exr"
+expect_status 0
+expect_empty_stderr
+run "preview --set matches the edited render" "$relight" diff --json "$work/edref.exr" "$work/edprev.exr"
+checks=$((checks + 1))
+python3 -c '
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["mean_pct"] < 0.1 and d["max_pct"] < 1.0, d
+' "$work/stdout" || fail "an edited preview differs from the edited render"
+run "unedited preview" bash -c "cd '$work' && '$relight' preview -q --cpu -o noedit.exr edit.shot.exr"
+expect_status 0
+run "the edit changed the picture" "$relight" diff --json "$work/noedit.exr" "$work/edprev.exr"
+checks=$((checks + 1))
+python3 -c '
+import json, sys
+assert json.load(open(sys.argv[1]))["mean_pct"] > 1.0
+' "$work/stdout" || fail "the --set edits had no effect"
+run "--set unknown light" "$relight" preview --cpu --set 7.intensity=1 "$work/edit.shot.exr"
+expect_status 1
+expect_stderr "no light named '7'; the shot's lights are: 1 2"
+run "--set unknown parameter" "$relight" preview --cpu --set 2.nope=1 "$work/edit.shot.exr"
+expect_status 1
+expect_stderr "light '2' \(shader 'pointlight'\) has no parameter 'nope'"
+run "--set wrong count" "$relight" preview --cpu --set 2.from=1,2 "$work/edit.shot.exr"
+expect_status 1
+expect_stderr "takes 3 values, not 2"
+run "--set not finite" "$relight" preview --cpu --set 2.intensity=inf "$work/edit.shot.exr"
+expect_status 1
+expect_stderr "needs finite values"
+run "--set malformed" "$relight" preview --cpu --set 2.intensity "$work/edit.shot.exr"
+expect_status 2
+expect_stderr "--set needs LIGHT.PARAM=V"
+
 run "preview without --cpu" "$relight" preview "$work/r.shot.exr"
 expect_status 2
 expect_stderr "only --cpu"
