@@ -26,6 +26,8 @@
  * shader instead took 2-3x the time on llvmpipe.
  */
 #include "resolve.h"
+
+#include "color.h"
 #include "log.h"
 
 #include <limits.h>
@@ -181,31 +183,6 @@ static const char encode_src[] =
 
 /* ---- the CPU's 8-bit encoding, and where it steps ---- */
 
-/* render/png.c's reyes_srgb8, operation for operation. */
-static uint8_t srgb8(float linear)
-{
-	float e;
-	if (!(linear > 0.0f)) {
-		e = 0.0f;
-	} else if (linear >= 1.0f) {
-		e = 1.0f;
-	} else {
-		double x = linear;
-		e = (float)(x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055);
-	}
-	return (uint8_t)(e * 255.0f + 0.5f);
-}
-
-/* render/png.c's reyes_unorm8. */
-static uint8_t unorm8(float value)
-{
-	if (!(value > 0.0f))
-		return 0;
-	if (value >= 1.0f)
-		return 255;
-	return (uint8_t)(value * 255.0f + 0.5f);
-}
-
 static float float_of(uint32_t bits)
 {
 	float f;
@@ -254,7 +231,7 @@ static uint32_t bits_of(float f)
 
 static void make_table(void)
 {
-	uint8_t (*const enc[2])(float) = { srgb8, unorm8 };
+	uint8_t (*const enc[2])(float) = { rl_srgb8, rl_unorm8 };
 	uint32_t n = 2 * 257;
 	table.ok = true;
 	for (int t = 0; t < 2; t++) {

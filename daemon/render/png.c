@@ -7,6 +7,8 @@
  * And the sRGB transfer function for display values.
  */
 #include "png.h"
+
+#include "color.h"
 #include "fileutil.h"
 
 #include <errno.h>
@@ -198,29 +200,17 @@ bool reyes_png_write(const char *path, const uint8_t *pixels, uint32_t width, ui
 
 float reyes_srgb_encode(float linear)
 {
-	/* Written so that NaN takes the first branch and +Inf the second. */
-	if (!(linear > 0.0f))
-		return 0.0f;
-	if (linear >= 1.0f)
-		return 1.0f;
-	double x = linear;
-	double v = x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
-	return (float)v;
+	return rl_srgb_encode(linear);
 }
 
 uint8_t reyes_srgb8(float linear)
 {
-	/* encode() is in [0, 1], so the sum is in [0.5, 255.5] and truncation is floor. */
-	return (uint8_t)(reyes_srgb_encode(linear) * 255.0f + 0.5f);
+	return rl_srgb8(linear);
 }
 
 uint8_t reyes_unorm8(float value)
 {
-	if (!(value > 0.0f))
-		return 0;
-	if (value >= 1.0f)
-		return 255;
-	return (uint8_t)(value * 255.0f + 0.5f);
+	return rl_unorm8(value);
 }
 
 void reyes_srgb8_rgba(const float *rgba, size_t npixels, bool with_alpha, uint8_t *out)
