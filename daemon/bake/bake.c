@@ -759,33 +759,6 @@ static uint64_t max_tile_bytes(const struct bake *b, const struct ifb *f, const 
 	return worst;
 }
 
-/* Is @v exactly a half? */
-static bool half_exact(float v)
-{
-	if (v == 0.0f)
-		return true;
-	float a = fabsf(v);
-	if (!(a <= 65504.0f) || a < 0x1p-24f)
-		return false;
-	int e;
-	frexpf(a, &e);
-	float s = ldexpf(a, e - 1 >= -14 ? 11 - e : 24);
-	return s == floorf(s);
-}
-
-/* @v rounded to the nearest half (|v| <= 65504). */
-static float half_round(float v)
-{
-	float a = fabsf(v);
-	if (a < 0x1p-25f)
-		return 0.0f;
-	int e;
-	frexpf(a, &e);
-	int q = e - 1 >= -14 ? 11 - e : 24;
-	float r = ldexpf(nearbyintf(ldexpf(a, q)), -q);
-	return v < 0.0f ? -r : r;
-}
-
 /*
  * How a channel of a cached value of type @type is stored: points and
  * plain floats as half only when every value is one exactly (ids, flags,
@@ -797,11 +770,11 @@ static bool store_as_half(enum sl_basetype type, const float *v, uint64_t n, dou
 	bool lossy = type == SL_TYPE_COLOR || type == SL_TYPE_NORMAL || type == SL_TYPE_VECTOR;
 	double worst = 0.0;
 	for (uint64_t r = 0; r < n; r++) {
-		if (half_exact(v[r]))
+		float h = shot_half_round(v[r]);
+		if (h == v[r])
 			continue;
 		if (!lossy || !(fabsf(v[r]) <= 65504.0f))
 			return false;
-		float h = half_round(v[r]);
 		double rel = fabs((double)h - v[r]) / fmax(fabs((double)v[r]), 1e-30);
 		if (fabsf(v[r]) >= 0x1p-14f && rel > worst)
 			worst = rel;

@@ -27,6 +27,9 @@ int cmd_usage_error(const char *cmd, const char *fmt, ...) __attribute__((format
 /** A decimal number from 0 to @max (no sign, nothing after it). */
 bool cmd_parse_uint(const char *s, uint32_t max, uint32_t *out);
 
+/** A finite decimal number in [@min, @max] (nothing after it). */
+bool cmd_parse_double(const char *s, double min, double max, double *out);
+
 /** The default shader search path: $RELIGHT_SHADER_PATH, then the project's library. */
 void cmd_shader_path(char *buf, size_t size);
 

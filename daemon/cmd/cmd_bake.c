@@ -198,10 +198,8 @@ int cmd_bake(int argc, char **argv)
 			}
 			break;
 		case 'b': {
-			char *end;
-			errno = 0;
-			double mb = strtod(optarg, &end);
-			if (end == optarg || *end || errno || !(mb >= 0.01 && mb <= 1048576.0)) {
+			double mb;
+			if (!cmd_parse_double(optarg, 0.01, 1048576.0, &mb)) {
 				free(dyn);
 				return usage_error("--tile-budget needs megabytes from 0.01 to 1048576, "
 						   "not '%s'", optarg);
@@ -210,10 +208,8 @@ int cmd_bake(int argc, char **argv)
 			break;
 		}
 		case 'r': {
-			char *end;
-			errno = 0;
-			double r = strtod(optarg, &end);
-			if (end == optarg || *end || errno || !(r >= 0.01 && r <= 10000.0)) {
+			double r;
+			if (!cmd_parse_double(optarg, 0.01, 10000.0, &r)) {
 				free(dyn);
 				return usage_error("--shadow-rate needs a number from 0.01 to 10000, "
 						   "not '%s'", optarg);

@@ -30,6 +30,17 @@ bool cmd_parse_uint(const char *s, uint32_t max, uint32_t *out)
 	return true;
 }
 
+bool cmd_parse_double(const char *s, double min, double max, double *out)
+{
+	char *end;
+	errno = 0;
+	double v = strtod(s, &end);
+	if (errno || end == s || *end || !(v >= min && v <= max))
+		return false;
+	*out = v;
+	return true;
+}
+
 void cmd_shader_path(char *buf, size_t size)
 {
 	const char *env = getenv("RELIGHT_SHADER_PATH");

@@ -265,6 +265,13 @@ static bool half_to_float(uint16_t h, float *out)
 	return true;
 }
 
+float shot_half_round(float v)
+{
+	float out = 0.0f;
+	half_to_float(float_to_half(v), &out);
+	return out;
+}
+
 /* Float channels are stored as given, except NaN (0) and infinities (+-FLT_MAX). */
 static uint32_t sanitize(uint32_t x)
 {

@@ -117,6 +117,12 @@ void shot_free(struct shot_file *f);
 const struct shot_table *shot_find_table(const struct shot_file *f, const char *name);
 const struct shot_deep *shot_find_deep(const struct shot_file *f, const char *name);
 
+/**
+ * The value a SHOT_HALF channel gives back for @v: rounded to the nearest
+ * half as shot_write() stores it (NaN -> 0, beyond 65504 -> +-65504).
+ */
+float shot_half_round(float v);
+
 /** The 64-bit content hash used for checksums (exposed for tests and content hashes). */
 uint64_t shot_hash(const void *data, size_t len, uint64_t seed);
 

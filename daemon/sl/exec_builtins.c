@@ -173,17 +173,26 @@ static const float *global_planes(struct sl_exec *x, enum sl_global g)
 	return b;
 }
 
-/* d/du and d/dv of component @c of @r over the grid; zero for uniform values. */
-static void deriv_of(struct sl_exec *x, int32_t r, int c, float *du, float *dv)
+/*
+ * The plane whose derivatives are wanted: component @c of @r, or NULL for a
+ * uniform value, whose derivatives @du and @dv are then zeroed.
+ */
+static const float *deriv_plane(struct sl_exec *x, int32_t r, int c, float *du, float *dv)
 {
 	if (r < 0 || !sl_x_varying(x, r)) {
 		memset(du, 0, x->n * sizeof(float));
 		memset(dv, 0, x->n * sizeof(float));
-		return;
+		return NULL;
 	}
-	if (rncomp(x, r) == 1)
-		c = 0;
-	sl_exec_deriv(x, x->data[r] + (size_t)c * x->stride, du, dv);
+	return x->data[r] + (size_t)(rncomp(x, r) == 1 ? 0 : c) * x->stride;
+}
+
+/* d/du and d/dv of component @c of @r over the grid; zero for uniform values. */
+static void deriv_of(struct sl_exec *x, int32_t r, int c, float *du, float *dv)
+{
+	const float *f = deriv_plane(x, r, c, du, dv);
+	if (f)
+		sl_exec_deriv(x, f, du, dv);
 }
 
 /*
@@ -194,14 +203,9 @@ static void deriv_steps_of(struct sl_exec *x, int32_t r, int c, float *du, float
 			   float *hv)
 {
 	*hu = *hv = 1.0f;
-	if (r < 0 || !sl_x_varying(x, r)) {
-		memset(du, 0, x->n * sizeof(float));
-		memset(dv, 0, x->n * sizeof(float));
-		return;
-	}
-	if (rncomp(x, r) == 1)
-		c = 0;
-	sl_exec_deriv_steps(x, x->data[r] + (size_t)c * x->stride, du, dv, hu, hv);
+	const float *f = deriv_plane(x, r, c, du, dv);
+	if (f)
+		sl_exec_deriv_steps(x, f, du, dv, hu, hv);
 }
 
 static bool need_args(struct sl_exec *x, const struct sl_insn *in, int n)
