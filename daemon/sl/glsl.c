@@ -1569,6 +1569,7 @@ static void emit_main(struct glsl_gen *g, struct sl_glsl_layout *layout)
 	sl_glsl_line(g, "uint idx = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * "
 		     "gl_NumWorkGroups.x * 64u;");
 	sl_glsl_line(g, "if (idx >= uint(u_count)) return;");
+	sl_glsl_line(g, "idx += uint(u_first);");
 	zero_arrays(g);
 	for (uint32_t k = 0; k < g->nlights; k++) {
 		g->cur = &g->lp[k];
@@ -1626,6 +1627,7 @@ static const char prelude[] =
 	"layout(local_size_x = 64) in;\n"
 	"layout(binding = 0) uniform samplerBuffer u_in;\n"
 	"uniform int u_count;\n"
+	"uniform int u_first;\n"
 	"layout(std430, binding = 1) buffer Out { float out_data[]; };\n";
 
 char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lights,

@@ -14,7 +14,7 @@
 
 /** The part of a program to emit, and where its data comes from. */
 /** Bumped whenever the generated code changes for the same input. */
-#define SL_GLSL_GENERATOR_VERSION 1
+#define SL_GLSL_GENERATOR_VERSION 2
 
 struct sl_slice {
 	const struct sl_program *prog;
@@ -50,8 +50,10 @@ struct sl_glsl_layout {
  * uniforms "p_NAME"; a coordinate system named in the code is the uniform
  * mat4 "space_NAME" (NAME -> current). Inputs come from samplerBuffer u_in
  * (texture unit 0) at sample * in_stride; outputs go to the SSBO at binding 1
- * at sample * out_stride; the sample index is as gpu.h's gpu_dispatch()
- * describes, and the uniform int u_count bounds it.
+ * at sample * out_stride. The sample is the uniform int u_first (0 unless
+ * set) plus the invocation index as gpu.h's gpu_dispatch() describes, which
+ * the uniform int u_count bounds: a dispatch of n runs samples
+ * [u_first, u_first + n).
  * Every built-in the code uses is emitted with the interpreter's numerics.
  * Returns the source (free() it) and fills @layout (free with
  * sl_glsl_layout_finish), or NULL with "FILE:LINE:COL: error: ..." on @diag
