@@ -10,6 +10,7 @@
 #include "lighthost.h"
 #include "mathlib.h"
 #include "shotfile.h"
+#include "shotmeta.h"
 #include "spec.h"
 #include "texture.h"
 
@@ -56,76 +57,17 @@ static bool fail(struct resolver *r, const char *fmt, const char *a, const char 
 	return false;
 }
 
-static const char *str(const cJSON *o, const char *key)
-{
-	const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
-	return cJSON_IsString(v) ? v->valuestring : NULL;
-}
+#define str shot_meta_str
+#define matrix shot_meta_matrix
 
-static bool matrix(const cJSON *o, const char *key, float m[16])
-{
-	const cJSON *a = cJSON_GetObjectItemCaseSensitive(o, key);
-	if (!cJSON_IsArray(a) || cJSON_GetArraySize(a) != 16)
-		return false;
-	int i = 0;
-	const cJSON *v;
-	cJSON_ArrayForEach(v, a) {
-		if (!cJSON_IsNumber(v) || !isfinite(v->valuedouble))
-			return false;
-		m[i++] = (float)v->valuedouble;
-	}
-	return true;
-}
-
-/* The shader at @source, as compiled at bake time (same source hash). */
 static struct sl_program *load_shader(struct resolver *r, const cJSON *o)
 {
-	const char *src = str(o, "source"), *hash = str(o, "source_hash");
-	if (!src || !hash) {
-		fail(r, "a shader entry of the metadata has no source%s%s", NULL, NULL);
-		return NULL;
-	}
-	struct sl_options so = { .diag = r->diag };
-	struct sl_program *p = sl_compile_file(src, &so);
-	if (!p) {
-		fail(r, "cannot compile the shader '%s' the shot was baked with%s", src, NULL);
-		return NULL;
-	}
-	if (strcmp(sl_program_source_hash(p), hash)) {
-		fail(r, "the shader '%s' changed since the bake; bake the scene again%s", src, NULL);
-		sl_program_destroy(p);
-		return NULL;
-	}
-	return p;
+	return shot_meta_shader(o, r->path, r->diag);
 }
 
 static bool set_params(struct resolver *r, struct sl_exec *x, const cJSON *params)
 {
-	const cJSON *p;
-	cJSON_ArrayForEach(p, params) {
-		const char *name = str(p, "name"), *type = str(p, "type");
-		const cJSON *v = cJSON_GetObjectItemCaseSensitive(p, "value");
-		if (!name || !type || !cJSON_IsArray(v))
-			return fail(r, "a light parameter in the metadata is malformed%s%s", NULL,
-				    NULL);
-		int n = cJSON_GetArraySize(v);
-		if (!strcmp(type, "string")) {
-			const cJSON *s = cJSON_GetArrayItem(v, 0);
-			if (cJSON_IsString(s))
-				sl_exec_set_param_string(x, name, s->valuestring);
-			continue;
-		}
-		if (n <= 0 || n > 4096)
-			continue;
-		float vals[4096];
-		int k = 0;
-		const cJSON *e;
-		cJSON_ArrayForEach(e, v)
-			vals[k++] = cJSON_IsNumber(e) && isfinite(e->valuedouble) ? (float)e->valuedouble
-										   : 0.0f;
-		sl_exec_set_param(x, name, vals, (uint32_t)n);
-	}
-	return true;
+	return shot_meta_set_params(x, params, r->path, r->diag);
 }
 
 /* Apply the edits of light @L (named @name) after its baked parameters. */
@@ -136,41 +78,14 @@ static bool apply_edits(struct resolver *r, struct light *L, const char *name,
 		const struct resolve_edit *e = &o->edits[i];
 		if (strcmp(e->light, name))
 			continue;
-		int k = sl_program_find_param(L->prog, e->param);
-		if (k < 0 || L->prog->params[k].output) {
-			fprintf(r->diag, "relight: error: light '%s' (shader '%s') has no parameter "
-				"'%s'\n", name, L->prog->name, e->param);
-			return false;
-		}
-		const struct sl_type *ty = &L->prog->params[k].type;
-		uint32_t nc = (uint32_t)sl_type_ncomp(ty->base);
-		if (ty->base == SL_TYPE_STRING || ty->arraylen >= 0 || nc == 0) {
-			fprintf(r->diag, "relight: error: light '%s': parameter '%s' is a %s%s; only "
-				"float, colour, point, vector, normal and matrix parameters can be "
-				"edited\n", name, e->param, sl_basetype_name(ty->base),
-				ty->arraylen >= 0 ? " array" : "");
-			return false;
-		}
 		float v[16];
-		uint32_t n = e->nvalues;
-		if (n == 1 && ty->base == SL_TYPE_COLOR) {
-			v[0] = v[1] = v[2] = e->values[0];
-			n = 3;
-		} else {
-			memcpy(v, e->values, sizeof(v));
-		}
-		if (n != nc) {
-			fprintf(r->diag, "relight: error: light '%s': parameter '%s' is a %s and takes "
-				"%u value%s, not %u\n", name, e->param, sl_basetype_name(ty->base), nc,
-				nc == 1 ? "" : "s", e->nvalues);
+		uint32_t n;
+		char err[512];
+		if (!shot_meta_check_edit(L->prog, name, e->param, e->values, e->nvalues, v, &n, err,
+					  sizeof(err))) {
+			fprintf(r->diag, "relight: error: %s\n", err);
 			return false;
 		}
-		for (uint32_t c = 0; c < n; c++)
-			if (!isfinite(v[c])) {
-				fprintf(r->diag, "relight: error: light '%s': parameter '%s' needs finite "
-					"values\n", name, e->param);
-				return false;
-			}
 		if (!sl_exec_set_param(L->x, e->param, v, n))
 			return false;
 	}
@@ -239,23 +154,9 @@ static bool tex_shadow(void *user, const struct sl_tex_lookup *q)
 static const float *channel(struct resolver *r, const struct shot_table *t, const cJSON *chans,
 			    const char *name, float **owned, int depth)
 {
-	for (uint32_t c = 0; c < t->nchannels; c++)
-		if (!strcmp(t->channels[c].name, name))
-			return t->channels[c].type == SHOT_UINT ? NULL : t->channels[c].data;
-	const cJSON *k = cJSON_GetObjectItemCaseSensitive(
-		cJSON_GetObjectItemCaseSensitive(chans, "constants"), name);
-	if (cJSON_IsNumber(k) && isfinite(k->valuedouble)) {
-		float *v = rl_xmalloc((t->nrows + 1) * sizeof(float));
-		for (uint64_t i = 0; i < t->nrows; i++)
-			v[i] = (float)k->valuedouble;
-		*owned = v;
-		return v;
-	}
-	const cJSON *a = cJSON_GetObjectItemCaseSensitive(
-		cJSON_GetObjectItemCaseSensitive(chans, "aliases"), name);
-	if (cJSON_IsString(a) && depth < 4 && strcmp(a->valuestring, name))
-		return channel(r, t, chans, a->valuestring, owned, depth + 1);
-	return NULL;
+	(void)r;
+	(void)depth;
+	return shot_meta_channel(t, chans, name, owned);
 }
 
 /* Rows [lo, hi) of a surface table to shade. */

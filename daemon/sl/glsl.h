@@ -28,7 +28,31 @@ struct sl_slice {
 	/* Registers written per sample to the output buffer, in this order. */
 	const int32_t *outputs;
 	uint32_t noutputs;
+	/*
+	 * Derivative stencils (spec.h cached_deriv). Per input (NULL: none):
+	 * 1 when each sample's record also holds the input's change over one
+	 * grid step along u and along v (a shot's uKKK.CC / vKKK.CC channels),
+	 * and then the record holds the grid's steps du and dv too. Derivatives
+	 * (Du, Dv, Deriv, area, calculatenormal, filter regions of texture(),
+	 * environment(), shadow(), filterstep()) of values computed from such
+	 * inputs are taken as the interpreter does on a stencil
+	 * (sl_exec_set_stencil): what they are computed from is evaluated again
+	 * on the inputs moved one step along u and along v, in the same
+	 * invocation. A light's Ps is the surface position it is called with.
+	 */
+	const uint8_t *input_steps;
 };
+
+/* A shadow() call of the generated code: which map it reads is chosen when
+ * the kernel runs (see sl_glsl_emit). */
+struct sl_glsl_shadow_site {
+	int light;                 /* the light (0 .. nlights - 1) whose code calls it; -1: the slice */
+	const char *param;         /* the string parameter of that shader naming the map, or NULL */
+	const char *name;          /* with no @param: the constant map name */
+};
+
+/** The texture unit of shadow() site 0; site k uses SL_GLSL_SHADOW_UNIT0 + k. */
+#define SL_GLSL_SHADOW_UNIT0 2
 
 /** Where each input and output lives in the buffers, in floats. */
 struct sl_glsl_layout {
@@ -40,6 +64,14 @@ struct sl_glsl_layout {
 	 * strings[id] is the string of token id. */
 	const char **strings;
 	uint32_t nstrings;
+	/* With input_steps: per input, the first float of its u step and of its
+	 * v step (UINT32_MAX for an input without steps); where du and dv are
+	 * (UINT32_MAX when no input has steps). */
+	uint32_t *in_step_u, *in_step_v;
+	uint32_t du_offset, dv_offset;
+	/* The shadow() call sites, in the order of their uniforms. */
+	struct sl_glsl_shadow_site *shadows;
+	uint32_t nshadows;
 };
 
 /**
@@ -54,6 +86,15 @@ struct sl_glsl_layout {
  * set) plus the invocation index as gpu.h's gpu_dispatch() describes, which
  * the uniform int u_count bounds: a dispatch of n runs samples
  * [u_first, u_first + n).
+ * shadow() site k reads the depth map bound as samplerBuffer "u_shadow<k>"
+ * (texture unit SL_GLSL_SHADOW_UNIT0 + k; width * height depths,
+ * row-major) with the uniforms ivec2 "u_shadow<k>_size" (0 x 0: no map,
+ * the lookup gives what a missing file gives), mat4 "u_shadow<k>_to_camera"
+ * (world -> the map's camera), mat4 "u_shadow<k>_to_ndc" (world -> the map's
+ * NDC) and float "u_shadow<k>_bias" (the map's own bias, used when the call
+ * gives none); the uniform mat4 "u_to_world" takes current space to world.
+ * The filter, its samples and their jitter are the renderer's
+ * (render/texture.c reyes_tex_shadow), in the same arithmetic.
  * Every built-in the code uses is emitted with the interpreter's numerics.
  * Returns the source (free() it) and fills @layout (free with
  * sl_glsl_layout_finish), or NULL with "FILE:LINE:COL: error: ..." on @diag

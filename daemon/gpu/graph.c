@@ -1,0 +1,4 @@
+/*
+ * The computation graph: see graph.h.
+ */
+#include "graph.h"

@@ -1,0 +1,4 @@
+/*
+ * The GPU runtime: see runtime.h.
+ */
+#include "runtime.h"

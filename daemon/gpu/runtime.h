@@ -1,0 +1,139 @@
+/*
+ * The GPU runtime (lightspeed-2007 §5-§6): a shot file held in GPU memory
+ * and relit there. Loading compiles every program the shot needs (one
+ * kernel per surface shader and light shader it pairs with, and one per
+ * surface with no light), so that no edit ever compiles: parameters are
+ * uniforms.
+ *
+ * The work is a computation graph (graph.h) built from what the shot holds:
+ * a source node per light and per surface with editable parameters; a
+ * shadow-map node per light whose shader reads one (none when no light
+ * casts shadows); a shading node per refinement band, holding the light
+ * cache of its samples; a resolve node per refinement level; an 8-bit node
+ * per level. Pulling a level runs only what changed upstream of it.
+ *
+ * Refinement bands: level 0 needs band 0 (one sample per 4x4 block), level
+ * 1 bands 0-1, level 2 bands 0-2, level 3 (the final frame) all four. Each
+ * band's samples are shaded once per change, so refining from one level to
+ * the next shades only the new band.
+ *
+ * The light cache (§5.3): per band, the sum of the contributions of the
+ * frozen lights, and per band and light the parameters that sum was made
+ * with. Editing a frozen light unfreezes it: its cached contribution is
+ * shaded again with the cached parameters and subtracted. Unfrozen lights
+ * are shaded on every change; freezing one adds its current contribution.
+ * A sample's colour is its surface with no light, plus the cache, plus the
+ * unfrozen lights. This relies on surfaces being linear in their lights,
+ * which loading checks on a subset of samples on the CPU.
+ */
+#ifndef GPU_RUNTIME_H
+#define GPU_RUNTIME_H
+
+#include "gpu.h"
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+struct graph;
+struct gpu_shot;
+
+#define GPU_SHOT_LEVELS 4
+#define GPU_SHOT_FINAL 3
+
+struct gpu_shot_opts {
+	FILE *diag;                /* messages; NULL: stderr */
+	const char *texture_path;  /* where shadow maps are found; NULL: "." */
+	size_t budget;             /* GPU bytes the shot may take; 0: 2 GiB */
+	bool progress;             /* a progress bar on stderr while loading */
+};
+
+/**
+ * Load the shot at @path into @ctx (current on the calling thread): read
+ * it, upload it tile by tile, compile its programs. NULL with a clear
+ * message on opts->diag on failure (unreadable shot, a shader that changed
+ * since the bake, over the budget: how much it needs).
+ */
+struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
+			       const struct gpu_shot_opts *opts);
+void gpu_shot_close(struct gpu_shot *s);
+
+uint32_t gpu_shot_width(const struct gpu_shot *s);
+uint32_t gpu_shot_height(const struct gpu_shot *s);
+/** Bytes of GPU memory the shot holds. */
+size_t gpu_shot_bytes(const struct gpu_shot *s);
+/** Shading samples of the shot. */
+uint64_t gpu_shot_samples(const struct gpu_shot *s);
+/** The graph (for inspection: nodes, how often each ran). */
+const struct graph *gpu_shot_graph(const struct gpu_shot *s);
+
+/* ---- lights ---- */
+
+uint32_t gpu_shot_light_count(const struct gpu_shot *s);
+/** Light @i's name (its RIB handle) and shader name. */
+const char *gpu_shot_light_name(const struct gpu_shot *s, uint32_t i);
+const char *gpu_shot_light_shader(const struct gpu_shot *s, uint32_t i);
+/** The index of the light named @name, or -1. */
+int gpu_shot_find_light(const struct gpu_shot *s, const char *name);
+
+/**
+ * Set parameter @param of light @light to @values (@n floats; one value
+ * broadcasts to a colour; points and vectors in the light's shader space, as
+ * in the RIB). Refused, with the reason in @err and nothing changed, for an
+ * unknown light or parameter, a string or array parameter, a wrong count, a
+ * value that is not finite or out of the parameter's range
+ * (shotmeta.h shot_meta_check_edit).
+ */
+bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
+		  const float *values, uint32_t n, char *err, size_t errlen);
+
+/** The current value of a light's parameter (@out: 16 floats); false if none. */
+bool gpu_shot_get(const struct gpu_shot *s, const char *light, const char *param, float out[16],
+		  uint32_t *n);
+
+/** Mute or unmute a light (a muted light contributes nothing). */
+bool gpu_shot_mute(struct gpu_shot *s, const char *light, bool muted, char *err, size_t errlen);
+
+/** Solo a light (every other light is muted while it is), or none with NULL. */
+bool gpu_shot_solo(struct gpu_shot *s, const char *light, char *err, size_t errlen);
+
+/**
+ * Light linking: whether @light illuminates object @object (the primitive
+ * ids of the bake, see `relight info`). Objects start linked as the RIB's
+ * Illuminate calls left them.
+ */
+bool gpu_shot_link(struct gpu_shot *s, const char *light, uint32_t object, bool linked,
+		   char *err, size_t errlen);
+
+/**
+ * Freeze a light into the light cache, or unfreeze it. An edit of a frozen
+ * light unfreezes it and freezes the lights unfrozen by earlier edits (not
+ * those unfrozen here).
+ */
+bool gpu_shot_freeze(struct gpu_shot *s, const char *light, bool frozen, char *err,
+		     size_t errlen);
+
+/* ---- rendering ---- */
+
+struct gpu_shot_stats {
+	double ms;                 /* wall time of this call, the GPU finished */
+	uint64_t entries;          /* indirect-framebuffer entries the level resolves */
+	uint64_t shaded;           /* (sample, light) pairs shaded by this call */
+	uint32_t dispatches;       /* kernels run */
+};
+
+/**
+ * Bring refinement level @level (0..3) up to date with every edit so far:
+ * shade what changed in bands 0..level and resolve the level. Its image
+ * can then be read. False on a GPU error (message on opts->diag).
+ */
+bool gpu_shot_render(struct gpu_shot *s, int level, struct gpu_shot_stats *st);
+
+/** Level @level's image: width * height premultiplied linear RGBA floats. */
+bool gpu_shot_read_rgba(struct gpu_shot *s, int level, float *rgba);
+
+/** Level @level's image as 8-bit sRGB (RGBA8, R in the low byte), encoded on the GPU. */
+bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px);
+
+#endif

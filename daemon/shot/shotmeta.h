@@ -1,0 +1,64 @@
+/*
+ * Reading a shot's metadata (the JSON of `relight bake`): its shaders,
+ * light parameters and channels, and checking light edits against a
+ * light's shader. Shared by the CPU resolver and the GPU runtime, so that
+ * both read a shot, and refuse an edit, the same way.
+ */
+#ifndef SHOT_META_H
+#define SHOT_META_H
+
+#include "shotfile.h"
+
+#include <cjson/cJSON.h>
+#include <stdbool.h>
+#include <stdint.h>
+#include <stdio.h>
+
+struct sl_program;
+struct sl_exec;
+
+/** The string member @key of @o, or NULL. */
+const char *shot_meta_str(const cJSON *o, const char *key);
+
+/** The 16 finite numbers of array member @key of @o into @m; false otherwise. */
+bool shot_meta_matrix(const cJSON *o, const char *key, float m[16]);
+
+/**
+ * Compile the shader of entry @o ("source", "source_hash") as it was at bake
+ * time. NULL with "relight: error: SHOT: ..." on @diag when it is missing,
+ * does not compile, or changed since the bake.
+ */
+struct sl_program *shot_meta_shader(const cJSON *o, const char *shot, FILE *diag);
+
+/**
+ * Set the parameters of a "params" array ({name, type, value}) on @x. False
+ * with a message on @diag when an entry is malformed; values that are not
+ * finite numbers read as 0.
+ */
+bool shot_meta_set_params(struct sl_exec *x, const cJSON *params, const char *shot, FILE *diag);
+
+/**
+ * A channel of surface table @t by name: stored, a constant of @chans
+ * ("constants") or an alias ("aliases"). A constant is expanded into a new
+ * array of t->nrows floats returned in *@owned (free() it). NULL when absent
+ * or a UINT channel.
+ */
+const float *shot_meta_channel(const struct shot_table *t, const cJSON *chans, const char *name,
+			       float **owned);
+
+/**
+ * Check an edit of parameter @param of light @light (named @lname) to
+ * @values (@n of them): the parameter must exist, be a float, colour, point,
+ * vector, normal or matrix (not a string or an array), take @n values (one
+ * value broadcasts to a colour) that are finite and within the range the
+ * parameter allows (angles of cones in [0, pi], sample counts in [1, 1024],
+ * any value at most 1e18 in magnitude). On success the values as the
+ * parameter takes them are written to @out (16 floats) and their count to
+ * *@nout; otherwise false with the reason, naming the light and the
+ * parameter, in @err (always NUL-terminated).
+ */
+bool shot_meta_check_edit(const struct sl_program *light, const char *lname, const char *param,
+			  const float *values, uint32_t n, float out[16], uint32_t *nout,
+			  char *err, size_t errlen);
+
+#endif
