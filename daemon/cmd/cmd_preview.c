@@ -1,10 +1,14 @@
 /*
- * relight preview: the preview of a shot file, headless. With --cpu it
- * shades the samples on the grid interpreter and resolves the final level
- * (the ground truth of the GPU runtime).
+ * relight preview: the preview of a shot file, headless. By default the GPU
+ * runtime (gpu/runtime.h) loads the shot, renders it from nothing to the
+ * final level, applies the --set edits and refines the edited image level
+ * by level, timing each step. With --cpu it shades the samples on the grid
+ * interpreter instead (the ground truth of the GPU runtime).
  */
 #include "cmd.h"
+#include "graph.h"
 #include "resolve.h"
+#include "runtime.h"
 #include "texture.h"
 
 #include <errno.h>
@@ -18,18 +22,24 @@
 static void usage(FILE *out)
 {
 	fprintf(out,
-		"usage: relight preview --cpu [--set LIGHT.PARAM=V[,V,V]]... [--level N|final]\n"
+		"usage: relight preview [--cpu] [--set LIGHT.PARAM=V[,V,V]]... [--level N|final]\n"
 		"                       [-o OUT.exr] [--json] SHOT.exr\n"
 		"\n"
-		"Relight a shot file written by 'relight bake' and write the image. With --cpu\n"
-		"every shading sample is shaded by its surface's dynamic program on relight's\n"
-		"shading-language interpreter, the lights run whole as in 'relight render',\n"
-		"and each pixel is resolved from its indirect-framebuffer entries: the CPU\n"
-		"reference that the GPU preview must match. Shadow maps and textures are\n"
-		"looked up as at bake time, relative to the current directory.\n"
+		"Relight a shot file written by 'relight bake' and write the image.\n"
+		"\n"
+		"By default the shot is loaded into GPU memory (through EGL: a GPU, or Mesa's\n"
+		"llvmpipe where there is none), rendered from nothing to the final level with\n"
+		"every light in the light cache, then the --set edits are applied and the\n"
+		"image refined level by level, as an interactive session would see it.\n"
+		"\n"
+		"With --cpu every shading sample is shaded by its surface's dynamic program on\n"
+		"relight's shading-language interpreter, the lights run whole as in 'relight\n"
+		"render', and each pixel is resolved from its indirect-framebuffer entries:\n"
+		"the CPU reference that the GPU preview must match. Shadow maps and textures\n"
+		"are looked up as at bake time, relative to the current directory.\n"
 		"\n"
 		"Options:\n"
-		"  --cpu                Shade on the CPU (required: the GPU path is not built yet)\n"
+		"  --cpu                Shade on the CPU interpreter instead of the GPU\n"
 		"  --level N|final      The refinement level to resolve: 0, one sample per 4x4\n"
 		"                       pixel block; 1, per 2x2 block; 2, one sample per pixel\n"
 		"                       (the heaviest); 3 or final (default), every sample\n"
@@ -44,7 +54,12 @@ static void usage(FILE *out)
 		"                       sixteen for a matrix. Repeatable.\n"
 		"  -o, --output FILE    The image (OpenEXR, RGBA float; default: SHOT with\n"
 		"                       .shot.exr replaced by .preview.exr)\n"
-		"  --json               Print timings and counts as one JSON object\n"
+		"  --json               Print timings and counts as one JSON object. On the GPU:\n"
+		"                       full_ms (every light, from nothing to the final level),\n"
+		"                       edit_ms (after the --set edits, levels 0 to 3 refined\n"
+		"                       in turn with the light cache warm), levels (per level:\n"
+		"                       ms, entries resolved, samples shaded, kernels run) and\n"
+		"                       graph (the computation graph's nodes and their runs)\n"
 		"  -q, --quiet          No summary\n"
 		"  -h, --help           Show this help and exit\n"
 		"\n"
@@ -93,6 +108,71 @@ static char *default_output(const char *shot)
 	if (out)
 		snprintf(out, base + 16, "%.*s.preview.exr", (int)base, shot);
 	return out;
+}
+
+static bool write_rgba(const char *path, uint32_t w, uint32_t h, float *rgba)
+{
+	static const char *const names[4] = { "R", "G", "B", "A" };
+	struct reyes_image im = { .width = w, .height = h, .nchannels = 4,
+				  .channel_names = (const char **)names, .data = rgba };
+	return reyes_image_write_exr(path, &im, false, stderr);
+}
+
+/* The preview on the GPU runtime. */
+static int preview_gpu(const char *shot, const char *output, int level,
+		       const struct resolve_edit *edits, size_t nedits, bool json, bool quiet)
+{
+	char err[1024];
+	struct gpu_ctx *ctx = gpu_create(err, sizeof(err));
+	if (!ctx) {
+		fprintf(stderr, "relight: error: no GPU context (%s); 'relight preview --cpu' "
+			"previews on the CPU\n", err);
+		return CMD_FAILED;
+	}
+	struct gpu_shot_opts so = { .diag = stderr, .texture_path = ".", .progress = !quiet && !json };
+	struct gpu_shot *s = gpu_shot_open(ctx, shot, &so);
+	bool ok = s != NULL;
+	struct gpu_shot_stats full = { 0 }, lv[GPU_SHOT_LEVELS];
+	memset(lv, 0, sizeof(lv));
+	ok = ok && gpu_shot_render(s, GPU_SHOT_FINAL, &full);
+	for (size_t i = 0; ok && i < nedits; i++)
+		if (!gpu_shot_set(s, edits[i].light, edits[i].param, edits[i].values,
+				  edits[i].nvalues, err, sizeof(err))) {
+			fprintf(stderr, "relight: error: %s\n", err);
+			ok = false;
+		}
+	double edit_ms = 0;
+	for (int L = 0; ok && L < GPU_SHOT_LEVELS; L++) {
+		ok = gpu_shot_render(s, L, &lv[L]);
+		edit_ms += lv[L].ms;
+	}
+	uint32_t w = s ? gpu_shot_width(s) : 0, h = s ? gpu_shot_height(s) : 0;
+	float *rgba = ok ? malloc((size_t)w * h * 4 * sizeof(float)) : NULL;
+	ok = ok && rgba && gpu_shot_read_rgba(s, level, rgba) && write_rgba(output, w, h, rgba);
+	if (ok && json) {
+		printf("{\"device\": \"%s\", \"width\": %u, \"height\": %u, \"level\": %d, "
+		       "\"samples\": %llu, \"lights\": %u, \"gpu_bytes\": %zu, "
+		       "\"full_ms\": %.3f, \"full_shaded\": %llu, \"edit_ms\": %.3f, \"levels\": [",
+		       gpu_renderer(ctx), w, h, level, (unsigned long long)gpu_shot_samples(s),
+		       gpu_shot_light_count(s), gpu_shot_bytes(s), full.ms,
+		       (unsigned long long)full.shaded, edit_ms);
+		for (int L = 0; L < GPU_SHOT_LEVELS; L++)
+			printf("%s{\"level\": %d, \"ms\": %.3f, \"entries\": %llu, \"shaded\": %llu, "
+			       "\"dispatches\": %u}", L ? ", " : "", L, lv[L].ms,
+			       (unsigned long long)lv[L].entries, (unsigned long long)lv[L].shaded,
+			       lv[L].dispatches);
+		printf("], \"output\": \"%s\", \"graph\": ", output);
+		graph_print_json(gpu_shot_graph(s), stdout);
+		printf("}\n");
+	} else if (ok && !quiet) {
+		fprintf(stderr, "wrote %s: %ux%u on %s; every light %.1f ms, the edit refined to "
+			"the final level in %.1f ms (level 0 in %.1f ms)\n", output, w, h,
+			gpu_renderer(ctx), full.ms, edit_ms, lv[0].ms);
+	}
+	free(rgba);
+	gpu_shot_close(s);
+	gpu_destroy(ctx);
+	return ok ? CMD_OK : CMD_FAILED;
 }
 
 int cmd_preview(int argc, char **argv)
@@ -167,21 +247,22 @@ int cmd_preview(int argc, char **argv)
 		return usage_error("no shot file");
 	if (optind + 1 < argc)
 		return usage_error("one shot file expected; extra argument '%s'", argv[optind + 1]);
-	if (!cpu)
-		return usage_error("only --cpu is available: the GPU preview is not built yet");
 	const char *shot = argv[optind];
 	char *out_alloc = output ? NULL : default_output(shot);
 	if (!output)
 		output = out_alloc;
+	if (!cpu) {
+		int rc = output ? preview_gpu(shot, output, level, edits, nedits, json, quiet)
+				: CMD_FAILED;
+		free(out_alloc);
+		return rc;
+	}
 	struct resolve_opts ro = { .diag = stderr, .texture_path = ".", .level = level,
 				   .edits = edits, .nedits = nedits };
 	struct resolve_result res;
 	bool ok = output && resolve_cpu(shot, &ro, &res);
 	if (ok) {
-		static const char *const names[4] = { "R", "G", "B", "A" };
-		struct reyes_image im = { .width = res.width, .height = res.height, .nchannels = 4,
-					  .channel_names = (const char **)names, .data = res.rgba };
-		ok = reyes_image_write_exr(output, &im, false, stderr);
+		ok = write_rgba(output, res.width, res.height, res.rgba);
 		if (ok && json)
 			printf("{\"width\": %u, \"height\": %u, \"level\": %d, \"samples\": %llu, "
 			       "\"entries\": %llu, "

@@ -1283,6 +1283,14 @@ bool gpu_dispatch(struct gpu_ctx *ctx, struct gpu_program *p, const struct gpu_b
 	return gl_check("gpu_dispatch");
 }
 
+bool gpu_finish(struct gpu_ctx *ctx)
+{
+	if (!ctx || !is_current(ctx, __func__))
+		return false;
+	glFinish();
+	return gl_check("gpu_finish");
+}
+
 /* ---- offline validation ---- */
 
 static bool write_file(const char *path, const char *text)

@@ -86,6 +86,9 @@ struct gpu_binding {
 bool gpu_dispatch(struct gpu_ctx *ctx, struct gpu_program *p, const struct gpu_binding *b,
 		  uint32_t nb, uint32_t n);
 
+/** Wait until every command issued to @ctx has finished (for timing). */
+bool gpu_finish(struct gpu_ctx *ctx);
+
 /**
  * Check GLSL source offline with glslangValidator (package glslang-tools):
  * 1 valid, 0 invalid (messages to @log), -1 when the validator is missing.

@@ -1,4 +1,1535 @@
 /*
  * The GPU runtime: see runtime.h.
+ *
+ * Memory, per shot: for each surface shader, its samples' cached values as
+ * packed records (a texture buffer, the layout of its kernels' inputs) and
+ * the object id of each sample; for every sample, four colours: the surface
+ * with no light (base), the light cache, the colour the resolve reads, and
+ * a scratch of kernel outputs sized for the largest surface; per light, one
+ * float per object saying whether the light reaches it; the indirect
+ * framebuffer and its coarse levels (gpu/resolve.h); one RGBA image per
+ * level.
+ *
+ * Rows: within each tile, each band's rows of a surface are a range of its
+ * table (the bake orders them so). When a surface's editable parameters
+ * take different values on different objects (paramset), the rows of each
+ * range are sorted by paramset at load, so that one dispatch with one set
+ * of uniforms covers each run; the indirect framebuffer's sample ids are
+ * renumbered to match.
+ *
+ * Shading a light over a band: for each surface and each run of rows, the
+ * (surface, light shader) kernel writes Ci for the light alone (plus the
+ * surface's part that needs no light); a second kernel subtracts the base
+ * and adds the difference, times the light's link to the sample's object,
+ * into the cache or the colours (sanitized: a non-finite difference adds 0).
  */
 #include "runtime.h"
+
+#include "arena.h"
+#include "graph.h"
+#include "log.h"
+#include "mathlib.h"
+#include "resolve.h"
+#include "shadowmap.h"
+#include "shotfile.h"
+#include "shotmeta.h"
+#include "spec.h"
+#include "texture.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#define DEFAULT_BUDGET ((size_t)2 << 30)
+#define NBANDS GPU_SHOT_LEVELS
+/* Subtractions from a band's cache before it is summed again from scratch. */
+#define MAX_SUBTRACTIONS 256
+#define MAX_PARAM_FLOATS 4096
+
+static double now_ms(void)
+{
+	struct timespec t;
+	clock_gettime(CLOCK_MONOTONIC, &t);
+	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+
+/* ------------------------------------------------------------------------ */
+/* State                                                                     */
+
+/* A light's parameters as its kernels take them (after the defaults ran,
+ * points in current space), and whether it is on. */
+struct lstate {
+	bool valid;                /* in a cache table: the light is in the cache */
+	bool on;                   /* contributes (not muted, not solo'd away) */
+	float *v;                  /* every non-string parameter's floats, in order */
+	uint32_t nv;
+	char **s;                  /* per string parameter */
+	uint32_t ns;
+	uint32_t link;             /* the link version */
+};
+
+struct light {
+	char *name;
+	uint32_t shader;           /* index into shot->lshaders */
+	float to_camera[16];       /* shader space -> current (camera) */
+	struct sl_exec *init;      /* runs the parameter defaults */
+	struct lstate cur;
+	bool muted;
+	bool frozen;               /* in the light cache */
+	bool pinned;               /* unfrozen by gpu_shot_freeze: stays so */
+	struct gpu_buffer *link;   /* per object: 1 reached, 0 not */
+	float *link_cpu;
+	uint32_t link_version;
+	struct graph_node *node;
+	struct graph_node *shadow_node;
+	struct gpu_shadow_map **maps;  /* per shadow site of its kernels: the bound map */
+	uint32_t nmaps;
+};
+
+struct lshader {
+	struct sl_program *prog;
+	struct sl_program init;    /* prog cut to its parameter defaults */
+};
+
+struct kernel {
+	char *glsl;
+	struct sl_glsl_layout layout;
+	struct gpu_program *prog;
+};
+
+/* A run of rows shaded with one set of uniforms. */
+struct run {
+	uint32_t first, count, paramset;
+};
+
+struct surface {
+	const cJSON *meta;
+	char *name;
+	struct sl_program *prog;
+	struct sl_spec *spec;
+	struct sl_program init;
+	struct sl_exec *init_x;
+	uint64_t nrows, id0;
+	struct kernel base;
+	struct kernel *lk;         /* per light shader */
+	struct gpu_buffer *records;
+	struct gpu_buffer *object; /* per row, as float */
+	RL_VEC(struct run) runs[NBANDS];
+	uint32_t nparamsets;
+	/* per paramset: the surface parameters' uniform values */
+	struct lstate *pvals;
+	struct graph_node *node;
+};
+
+struct gpu_shot {
+	struct gpu_ctx *ctx;
+	FILE *diag;
+	char *path;
+	cJSON *meta;
+	struct reyes_texsys *tex;
+	uint32_t width, height;
+	float w2c[16], c2w[16];
+	uint64_t nsamples;
+	uint32_t nobjects;
+	size_t bytes, budget;
+
+	struct lshader *lshaders;
+	uint32_t nlshaders;
+	struct light *lights;
+	uint32_t nlights;
+	int solo;                  /* a light index, or -1 */
+	struct surface *surfaces;
+	uint32_t nsurfaces;
+
+	struct gpu_ifb *ifb;
+	uint64_t level_entries[NBANDS];
+	struct gpu_buffer *base, *cache, *colors, *scratch, *zero;
+	struct gpu_buffer *rgba[NBANDS], *px8;
+	struct gpu_program *accumulate, *combine;
+
+	/* the light cache: per band, per light, what the cache holds of it */
+	struct lstate *cached[NBANDS];
+	uint32_t subtractions[NBANDS];
+	bool base_valid[NBANDS];
+	uint32_t link_version;
+
+	struct graph *graph;
+	struct graph_node *shade[NBANDS], *resolve[NBANDS];
+	struct gpu_shot_stats *stats;  /* of the call running, or NULL */
+	bool failed;
+};
+
+static bool fail(struct gpu_shot *s, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+static bool fail(struct gpu_shot *s, const char *fmt, ...)
+{
+	va_list ap;
+	va_start(ap, fmt);
+	fprintf(s->diag, "relight: error: %s: ", s->path);
+	vfprintf(s->diag, fmt, ap);
+	fputc('\n', s->diag);
+	va_end(ap);
+	return false;
+}
+
+static void errorf(char *err, size_t errlen, const char *fmt, ...)
+	__attribute__((format(printf, 3, 4)));
+
+static void errorf(char *err, size_t errlen, const char *fmt, ...)
+{
+	va_list ap;
+	va_start(ap, fmt);
+	if (err && errlen)
+		vsnprintf(err, errlen, fmt, ap);
+	va_end(ap);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Parameter values                                                          */
+
+static void lstate_free(struct lstate *st)
+{
+	for (uint32_t i = 0; i < st->ns; i++)
+		free(st->s[i]);
+	free(st->s);
+	free(st->v);
+	memset(st, 0, sizeof(*st));
+}
+
+static void lstate_copy(struct lstate *dst, const struct lstate *src)
+{
+	lstate_free(dst);
+	*dst = *src;
+	dst->v = rl_xmalloc((src->nv + 1) * sizeof(float));
+	memcpy(dst->v, src->v, src->nv * sizeof(float));
+	dst->s = rl_xcalloc(src->ns + 1, sizeof(char *));
+	for (uint32_t i = 0; i < src->ns; i++)
+		dst->s[i] = rl_xstrdup(src->s[i]);
+}
+
+static bool lstate_equal(const struct lstate *a, const struct lstate *b)
+{
+	if (a->valid != b->valid || a->on != b->on || a->nv != b->nv || a->ns != b->ns ||
+	    a->link != b->link)
+		return false;
+	if (memcmp(a->v, b->v, a->nv * sizeof(float)))
+		return false;
+	for (uint32_t i = 0; i < a->ns; i++)
+		if (strcmp(a->s[i], b->s[i]))
+			return false;
+	return true;
+}
+
+/* The coordinate systems a parameter default may name. */
+struct space_host {
+	struct sl_host host;
+	const float *shader;       /* NULL: "shader" is not known */
+	const float *w2c;
+};
+
+static bool space_cb(void *user, const char *name, float m[16])
+{
+	const struct space_host *h = user;
+	if (!strcmp(name, "shader") && h->shader) {
+		memcpy(m, h->shader, 16 * sizeof(float));
+		return true;
+	}
+	if (!strcmp(name, "world")) {
+		memcpy(m, h->w2c, 16 * sizeof(float));
+		return true;
+	}
+	return false;
+}
+
+/* Run @x (a program cut to its defaults) and gather its parameters' values. */
+static bool eval_params(struct sl_exec *x, const struct sl_program *prog, const float *shader,
+			const float *w2c, struct lstate *out)
+{
+	struct space_host h = { .host = { .space = space_cb }, .shader = shader, .w2c = w2c };
+	h.host.user = &h;
+	if (!sl_exec_set_grid(x, 1, 1) || !sl_exec_run(x, &h.host))
+		return false;
+	bool valid = out->valid, on = out->on;
+	uint32_t link = out->link;
+	lstate_free(out);
+	out->valid = valid;
+	out->on = on;
+	out->link = link;
+	RL_VEC(float) v = { 0 };
+	RL_VEC(char *) sv = { 0 };
+	for (uint32_t k = 0; k < prog->nparams; k++) {
+		int32_t r = prog->params[k].reg;
+		const struct sl_reg *g = &prog->regs[r];
+		uint32_t ne = g->arraylen > 0 ? (uint32_t)g->arraylen : 1;
+		uint32_t stride = g->varying ? sl_exec_stride(x) : 1;
+		if (g->type == SL_TYPE_STRING) {
+			const char **s = sl_exec_reg_strings(x, r);
+			rl_vec_push(sv, rl_xstrdup(s && s[0] ? s[0] : ""));
+			continue;
+		}
+		const float *d = sl_exec_reg(x, r);
+		uint32_t tot = ne * (uint32_t)sl_reg_ncomp(g);
+		for (uint32_t q = 0; q < tot; q++)
+			rl_vec_push(v, d && isfinite(d[(size_t)q * stride]) ? d[(size_t)q * stride]
+									   : 0.0f);
+	}
+	out->v = v.data ? v.data : rl_xcalloc(1, sizeof(float));
+	out->nv = (uint32_t)v.len;
+	out->s = sv.data ? sv.data : rl_xcalloc(1, sizeof(char *));
+	out->ns = (uint32_t)sv.len;
+	return true;
+}
+
+/* A string's token id in a kernel's table (past the table: a string it never compares to). */
+static float string_id(const struct sl_glsl_layout *lay, const char *s)
+{
+	for (uint32_t i = 0; i < lay->nstrings; i++)
+		if (!strcmp(lay->strings[i], s))
+			return (float)i;
+	return (float)lay->nstrings + 7.0f;
+}
+
+/* Set the uniforms @prefix + NAME of @prog's parameters from @st. */
+static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *lay,
+			 const struct sl_program *prog, const struct lstate *st, const char *prefix)
+{
+	uint32_t at = 0, si = 0;
+	for (uint32_t k = 0; k < prog->nparams; k++) {
+		const struct sl_reg *g = &prog->regs[prog->params[k].reg];
+		char name[320];
+		snprintf(name, sizeof(name), "%s%s", prefix, prog->params[k].name);
+		if (g->type == SL_TYPE_STRING) {
+			if (si < st->ns) {
+				float id = string_id(lay, st->s[si]);
+				gpu_uniform_float(gp, name, &id, 1);
+			}
+			si++;
+			continue;
+		}
+		uint32_t ne = g->arraylen > 0 ? (uint32_t)g->arraylen : 1;
+		uint32_t tot = ne * (uint32_t)sl_reg_ncomp(g);
+		if (at + tot > st->nv)
+			return;
+		if (tot == 16 && ne == 1)
+			gpu_uniform_mat4(gp, name, st->v + at);
+		else if (tot <= MAX_PARAM_FLOATS)
+			gpu_uniform_float(gp, name, st->v + at, (int)tot);
+		at += tot;
+	}
+}
+
+/* ------------------------------------------------------------------------ */
+/* The hand-written kernels                                                  */
+
+/*
+ * Accumulate: dst[id] (+)= sign * link(object) * (out[row] - base[id]) for
+ * rows [u_first, u_first + u_count) of a surface; or, for the base itself,
+ * dst[id] = out[row].
+ */
+static const char accumulate_src[] =
+	"#version 430 core\n"
+	"layout(local_size_x = 64) in;\n"
+	"layout(binding = 0) uniform samplerBuffer u_out;\n"
+	"layout(binding = 1) uniform samplerBuffer u_obj;\n"
+	"layout(binding = 2) uniform samplerBuffer u_link;\n"
+	"layout(binding = 3) uniform samplerBuffer u_base;\n"
+	"layout(std430, binding = 4) buffer Dst { float dst[]; };\n"
+	"uniform int u_count;\n"
+	"uniform int u_first;\n"
+	"uniform int u_ostride;\n"
+	"uniform int u_id0;\n"
+	"uniform int u_mode;   /* 0: dst = out; 1: dst += sign * link * (out - base) */\n"
+	"uniform float u_sign;\n"
+	"void main() {\n"
+	"	uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 64u;\n"
+	"	if (i >= uint(u_count)) return;\n"
+	"	int row = int(i) + u_first;\n"
+	"	int id = u_id0 + row;\n"
+	"	if (u_mode == 0) {\n"
+	"		for (int c = 0; c < 3; c++) {\n"
+	"			float v = texelFetch(u_out, row * u_ostride + c).x;\n"
+	"			dst[id * 3 + c] = isnan(v) || isinf(v) ? 0.0 : v;\n"
+	"		}\n"
+	"		return;\n"
+	"	}\n"
+	"	float w = u_sign * texelFetch(u_link, int(texelFetch(u_obj, row).x)).x;\n"
+	"	if (w == 0.0) return;\n"
+	"	for (int c = 0; c < 3; c++) {\n"
+	"		float v = texelFetch(u_out, row * u_ostride + c).x - texelFetch(u_base, id * 3 + c).x;\n"
+	"		v = isnan(v) || isinf(v) ? 0.0 : v * w;\n"
+	"		float r = dst[id * 3 + c] + v;\n"
+	"		dst[id * 3 + c] = isnan(r) || isinf(r) ? 0.0 : r;\n"
+	"	}\n"
+	"}\n";
+
+/* Combine: colors = base + cache over ids [u_first, u_first + u_count). */
+static const char combine_src[] =
+	"#version 430 core\n"
+	"layout(local_size_x = 64) in;\n"
+	"layout(binding = 0) uniform samplerBuffer u_base;\n"
+	"layout(binding = 1) uniform samplerBuffer u_cache;\n"
+	"layout(std430, binding = 2) buffer Dst { float dst[]; };\n"
+	"uniform int u_count;\n"
+	"uniform int u_first;\n"
+	"void main() {\n"
+	"	uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 64u;\n"
+	"	if (i >= uint(u_count)) return;\n"
+	"	int k = (int(i) + u_first) * 3;\n"
+	"	for (int c = 0; c < 3; c++) {\n"
+	"		float v = texelFetch(u_base, k + c).x + texelFetch(u_cache, k + c).x;\n"
+	"		dst[k + c] = isnan(v) || isinf(v) ? 0.0 : v;\n"
+	"	}\n"
+	"}\n";
+
+/* ------------------------------------------------------------------------ */
+/* Shading                                                                   */
+
+static bool count_dispatch(struct gpu_shot *s, uint64_t shaded)
+{
+	if (s->stats) {
+		s->stats->dispatches++;
+		s->stats->shaded += shaded;
+	}
+	return true;
+}
+
+/* Bind the shadow maps of kernel @k for light @L (NULL: the base kernel). */
+static bool bind_shadows(struct gpu_shot *s, const struct kernel *k, const struct light *L,
+			 struct gpu_binding *b, uint32_t *nb)
+{
+	for (uint32_t i = 0; i < k->layout.nshadows; i++) {
+		const struct gpu_shadow_map *m = L && L->maps ? L->maps[i] : NULL;
+		if (!gpu_shadow_map_bind(s->ctx, k->prog, i, m, s->c2w, &b[*nb]))
+			return fail(s, "cannot bind the shadow map of a kernel");
+		b[*nb].unit = SL_GLSL_SHADOW_UNIT0 + i;
+		(*nb)++;
+	}
+	return true;
+}
+
+/*
+ * Shade light @L (its state @st; NULL: the surface with no light) over the
+ * rows of band @band of every surface, and fold the result into @dst:
+ * with no light, dst = the result; else dst += sign * link * (result - base).
+ */
+static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, int band,
+		  float sign, struct gpu_buffer *dst)
+{
+	for (uint32_t si = 0; si < s->nsurfaces; si++) {
+		struct surface *sf = &s->surfaces[si];
+		if (!sf->runs[band].len)
+			continue;
+		struct kernel *k = L ? &sf->lk[L->shader] : &sf->base;
+		const struct sl_program *lp = L ? s->lshaders[L->shader].prog : NULL;
+		if (L) {
+			set_uniforms(k->prog, &k->layout, lp, st, "l0_");
+			gpu_uniform_mat4(k->prog, "l0_shader", L->to_camera);
+		}
+		gpu_uniform_mat4(k->prog, "space_world", s->w2c);
+		struct gpu_binding b[2 + 64];
+		uint32_t nb = 0;
+		b[nb++] = (struct gpu_binding){ 0, false, sf->records };
+		b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
+		if (!bind_shadows(s, k, L, b, &nb))
+			return false;
+		uint32_t ostride = k->layout.out_stride;
+		for (size_t r = 0; r < sf->runs[band].len; r++) {
+			const struct run *ru = &sf->runs[band].data[r];
+			if (sf->nparamsets && ru->paramset < sf->nparamsets)
+				set_uniforms(k->prog, &k->layout, sf->spec->dynamic,
+					     &sf->pvals[ru->paramset], "p_");
+			gpu_uniform_int(k->prog, "u_first", (int)ru->first);
+			if (!gpu_dispatch(s->ctx, k->prog, b, nb, ru->count))
+				return fail(s, "shading '%s' on the GPU failed", sf->name);
+			count_dispatch(s, ru->count);
+			struct gpu_program *a = s->accumulate;
+			gpu_uniform_int(a, "u_first", (int)ru->first);
+			gpu_uniform_int(a, "u_ostride", (int)ostride);
+			gpu_uniform_int(a, "u_id0", (int)sf->id0);
+			gpu_uniform_int(a, "u_mode", L ? 1 : 0);
+			gpu_uniform_float(a, "u_sign", &sign, 1);
+			struct gpu_binding ab[5] = {
+				{ 0, false, s->scratch },
+				{ 1, false, sf->object },
+				{ 2, false, L ? L->link : s->zero },
+				{ 3, false, s->base },
+				{ 4, true, dst },
+			};
+			if (!gpu_dispatch(s->ctx, a, ab, 5, ru->count))
+				return fail(s, "accumulating light '%s' failed", L ? L->name : "(none)");
+			count_dispatch(s, 0);
+		}
+	}
+	return true;
+}
+
+/* colors = base + cache over band @band's samples. */
+static bool combine(struct gpu_shot *s, int band)
+{
+	for (uint32_t si = 0; si < s->nsurfaces; si++) {
+		struct surface *sf = &s->surfaces[si];
+		for (size_t r = 0; r < sf->runs[band].len; r++) {
+			const struct run *ru = &sf->runs[band].data[r];
+			gpu_uniform_int(s->combine, "u_first", (int)(sf->id0 + ru->first));
+			struct gpu_binding b[3] = {
+				{ 0, false, s->base }, { 1, false, s->cache }, { 2, true, s->colors },
+			};
+			if (!gpu_dispatch(s->ctx, s->combine, b, 3, ru->count))
+				return fail(s, "combining the light cache failed");
+			count_dispatch(s, 0);
+		}
+	}
+	return true;
+}
+
+/* Zero @buf over band @band's samples. */
+static bool clear_band(struct gpu_shot *s, struct gpu_buffer *buf, int band)
+{
+	/* combine with base = cache = zero buffer */
+	for (uint32_t si = 0; si < s->nsurfaces; si++) {
+		struct surface *sf = &s->surfaces[si];
+		for (size_t r = 0; r < sf->runs[band].len; r++) {
+			const struct run *ru = &sf->runs[band].data[r];
+			gpu_uniform_int(s->combine, "u_first", (int)(sf->id0 + ru->first));
+			struct gpu_binding b[3] = {
+				{ 0, false, s->zero }, { 1, false, s->zero }, { 2, true, buf },
+			};
+			/* the zero buffer is as long as the colour buffers */
+			if (!gpu_dispatch(s->ctx, s->combine, b, 3, ru->count))
+				return fail(s, "clearing the light cache failed");
+			count_dispatch(s, 0);
+		}
+	}
+	return true;
+}
+
+static bool light_on(const struct gpu_shot *s, uint32_t i)
+{
+	return !s->lights[i].muted && (s->solo < 0 || s->solo == (int)i);
+}
+
+/*
+ * The shading node of band @band: bring the light cache of the band up to
+ * date with every light's state, then the band's colours.
+ */
+static bool run_shade(struct graph_node *n, void *user, bool *changed)
+{
+	(void)n;
+	struct gpu_shot *s = user;
+	int band = -1;
+	for (int b = 0; b < NBANDS; b++)
+		if (s->shade[b] == n)
+			band = b;
+	if (band < 0)
+		return false;
+	*changed = true;
+	for (uint32_t i = 0; i < s->nlights; i++) {
+		s->lights[i].cur.on = light_on(s, i);
+		s->lights[i].cur.link = s->lights[i].link_version;
+		s->lights[i].cur.valid = true;
+	}
+	struct lstate *cached = s->cached[band];
+	bool rebuild = !s->base_valid[band] || s->subtractions[band] > MAX_SUBTRACTIONS;
+	/* a link change of a light in the cache: its old links are gone */
+	for (uint32_t i = 0; i < s->nlights && !rebuild; i++)
+		if (cached[i].valid && cached[i].link != s->lights[i].link_version)
+			rebuild = true;
+	if (!s->base_valid[band]) {
+		if (!shade(s, NULL, NULL, band, 1.0f, s->base))
+			return false;
+		s->base_valid[band] = true;
+	}
+	if (rebuild) {
+		if (!clear_band(s, s->cache, band))
+			return false;
+		for (uint32_t i = 0; i < s->nlights; i++)
+			lstate_free(&cached[i]);
+		s->subtractions[band] = 0;
+	}
+	for (uint32_t i = 0; i < s->nlights; i++) {
+		struct light *L = &s->lights[i];
+		struct lstate *c = &cached[i];
+		bool want = L->frozen;
+		if (c->valid && (!want || !lstate_equal(c, &L->cur))) {
+			/* take the old contribution out */
+			if (c->on && !shade(s, L, c, band, -1.0f, s->cache))
+				return false;
+			if (c->on)
+				s->subtractions[band]++;
+			lstate_free(c);
+		}
+		if (want && !c->valid) {
+			if (L->cur.on && !shade(s, L, &L->cur, band, 1.0f, s->cache))
+				return false;
+			lstate_copy(c, &L->cur);
+		}
+	}
+	if (!combine(s, band))
+		return false;
+	for (uint32_t i = 0; i < s->nlights; i++) {
+		struct light *L = &s->lights[i];
+		if (!L->frozen && L->cur.on && !shade(s, L, &L->cur, band, 1.0f, s->colors))
+			return false;
+	}
+	return true;
+}
+
+/* The resolve node of level @L. */
+static bool run_resolve(struct graph_node *n, void *user, bool *changed)
+{
+	struct gpu_shot *s = user;
+	int level = -1;
+	for (int b = 0; b < NBANDS; b++)
+		if (s->resolve[b] == n)
+			level = b;
+	*changed = true;
+	if (level < 0 || !gpu_ifb_resolve(s->ifb, s->colors, s->nsamples, level, s->rgba[level]))
+		return fail(s, "resolving level %d failed", level);
+	count_dispatch(s, 0);
+	if (s->stats)
+		s->stats->entries = s->level_entries[level];
+	return true;
+}
+
+/* A light's shadow-map node: the maps its kernels' shadow() sites read. */
+static bool run_shadow(struct graph_node *n, void *user, bool *changed)
+{
+	struct gpu_shot *s = user;
+	struct light *L = NULL;
+	for (uint32_t i = 0; i < s->nlights; i++)
+		if (s->lights[i].shadow_node == n)
+			L = &s->lights[i];
+	if (!L)
+		return false;
+	*changed = true;
+	/* the sites are the same in every surface's kernel for this light shader */
+	const struct kernel *k = &s->surfaces[0].lk[L->shader];
+	const struct sl_program *lp = s->lshaders[L->shader].prog;
+	for (uint32_t i = 0; i < k->layout.nshadows; i++) {
+		const struct sl_glsl_shadow_site *site = &k->layout.shadows[i];
+		const char *name = site->name ? site->name : "";
+		if (site->param) {
+			/* the current value of the string parameter */
+			uint32_t si = 0;
+			for (uint32_t p = 0; p < lp->nparams; p++) {
+				if (lp->regs[lp->params[p].reg].type != SL_TYPE_STRING)
+					continue;
+				if (!strcmp(lp->params[p].name, site->param) && si < L->cur.ns)
+					name = L->cur.s[si];
+				si++;
+			}
+		}
+		gpu_shadow_map_destroy(L->maps[i]);
+		L->maps[i] = NULL;
+		if (name[0]) {
+			char err[512];
+			L->maps[i] = gpu_shadow_map_load(s->ctx, s->tex, name, err, sizeof(err));
+			if (!L->maps[i])
+				fprintf(s->diag, "relight: warning: light '%s': %s\n", L->name, err);
+		}
+	}
+	return true;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Loading                                                                   */
+
+static struct gpu_buffer *buffer(struct gpu_shot *s, size_t bytes, const void *data)
+{
+	if (s->bytes + bytes > s->budget) {
+		fail(s, "the shot needs more than its GPU memory budget of %.0f MiB (at least "
+		     "%.0f MiB); raise the budget or bake with smaller tiles",
+		     (double)s->budget / 1048576.0, (double)(s->bytes + bytes) / 1048576.0);
+		return NULL;
+	}
+	struct gpu_buffer *b = gpu_buffer_create(s->ctx, bytes ? bytes : 4, data);
+	if (!b)
+		fail(s, "out of GPU memory (%zu bytes)", bytes);
+	else
+		s->bytes += bytes;
+	return b;
+}
+
+static bool load_lights(struct gpu_shot *s)
+{
+	const cJSON *ls = cJSON_GetObjectItemCaseSensitive(s->meta, "lights");
+	int n = cJSON_GetArraySize(ls);
+	s->lights = rl_xcalloc((size_t)n + 1, sizeof(*s->lights));
+	s->lshaders = rl_xcalloc((size_t)n + 1, sizeof(*s->lshaders));
+	const cJSON *l;
+	cJSON_ArrayForEach(l, ls) {
+		struct light *L = &s->lights[s->nlights];
+		const char *name = shot_meta_str(l, "name"), *hash = shot_meta_str(l, "source_hash");
+		float s2w[16];
+		if (!name || !hash || !shot_meta_matrix(l, "shader_to_world", s2w))
+			return fail(s, "a light in the metadata is malformed");
+		L->name = rl_xstrdup(name);
+		sl_m44_mul(L->to_camera, s2w, s->w2c);
+		uint32_t k = 0;
+		while (k < s->nlshaders && strcmp(s->lshaders[k].prog->source_hash, hash))
+			k++;
+		if (k == s->nlshaders) {
+			struct sl_program *p = shot_meta_shader(l, s->path, s->diag);
+			if (!p)
+				return false;
+			s->lshaders[k].prog = p;
+			s->lshaders[k].init = *p;
+			s->lshaders[k].init.ncode = p->body_begin;
+			s->nlshaders++;
+		}
+		L->shader = k;
+		s->nlights++;
+		L->init = sl_exec_create(&s->lshaders[k].init, 1);
+		if (!L->init || !shot_meta_set_params(L->init, cJSON_GetObjectItemCaseSensitive(
+							      l, "params"), s->path, s->diag))
+			return fail(s, "cannot set up light '%s'", name);
+		L->cur.on = true;
+		if (!eval_params(L->init, s->lshaders[k].prog, L->to_camera, s->w2c, &L->cur))
+			return fail(s, "light '%s': its parameter defaults failed", name);
+		L->frozen = true;
+		L->node = graph_add(s->graph, name, GRAPH_PARAMS, NULL, NULL);
+	}
+	return true;
+}
+
+/* Emit and compile kernel @k of surface @sf with light shader @light (NULL: none). */
+static bool make_kernel(struct gpu_shot *s, struct surface *sf, const struct sl_program *light,
+			struct kernel *k, const uint8_t *steps)
+{
+	struct sl_slice slice = sf->spec->slice;
+	slice.input_steps = steps;
+	const struct sl_program *lights[1] = { light };
+	k->glsl = sl_glsl_emit(&slice, lights, light ? 1 : 0, &k->layout, s->diag);
+	if (!k->glsl)
+		return fail(s, "surface '%s'%s%s cannot run on the GPU", sf->name,
+			    light ? " lit by " : "", light ? light->name : "");
+	k->prog = gpu_program(s->ctx, k->glsl, s->diag);
+	if (!k->prog)
+		return fail(s, "the GPU program of surface '%s'%s%s does not compile", sf->name,
+			    light ? " with light " : "", light ? light->name : "");
+	if (k->layout.in_stride != sf->base.layout.in_stride)
+		return fail(s, "the kernels of surface '%s' disagree on their inputs", sf->name);
+	return true;
+}
+
+/* Rows [lo, hi) of @sf as a band's runs, split by paramset (rows already sorted). */
+static void add_runs(struct surface *sf, int band, uint64_t lo, uint64_t hi,
+		     const uint32_t *paramset)
+{
+	while (lo < hi) {
+		uint64_t e = lo + 1;
+		uint32_t ps = paramset ? paramset[lo] : 0;
+		while (e < hi && (!paramset || paramset[e] == ps))
+			e++;
+		struct run r = { (uint32_t)lo, (uint32_t)(e - lo), ps };
+		rl_vec_push(sf->runs[band], r);
+		lo = e;
+	}
+}
+
+static const uint32_t *uint_channel(const struct shot_table *t, const char *name)
+{
+	for (uint32_t c = 0; c < t->nchannels; c++)
+		if (!strcmp(t->channels[c].name, name) && t->channels[c].type == SHOT_UINT)
+			return t->channels[c].data;
+	return NULL;
+}
+
+/* A permutation sort key: (paramset, row). */
+struct rowkey {
+	uint32_t ps;
+	uint32_t row;
+};
+
+static int rowkey_cmp(const void *a, const void *b)
+{
+	const struct rowkey *x = a, *y = b;
+	if (x->ps != y->ps)
+		return x->ps < y->ps ? -1 : 1;
+	return x->row < y->row ? -1 : x->row > y->row;
+}
+
+static bool load_surface(struct gpu_shot *s, const struct shot_file *f, uint32_t si,
+			 const cJSON *tiles, uint32_t *remap, uint32_t *lightset_of_object,
+			 uint32_t nobjects)
+{
+	struct surface *sf = &s->surfaces[si];
+	const char *table = shot_meta_str(sf->meta, "table");
+	const struct shot_table *t = table ? shot_find_table(f, table) : NULL;
+	const cJSON *first = cJSON_GetObjectItemCaseSensitive(sf->meta, "first_id");
+	if (!t || !cJSON_IsNumber(first) || first->valuedouble < 0 ||
+	    first->valuedouble + (double)t->nrows > (double)s->nsamples || t->nrows > INT32_MAX)
+		return fail(s, "the surface table '%s' is missing or does not fit",
+			    table ? table : "?");
+	sf->nrows = t->nrows;
+	sf->id0 = (uint64_t)first->valuedouble;
+	sf->prog = shot_meta_shader(sf->meta, s->path, s->diag);
+	if (!sf->prog)
+		return false;
+	sf->name = rl_xstrdup(sf->prog->name);
+	const cJSON *dyn = cJSON_GetObjectItemCaseSensitive(sf->meta, "dynamic_params");
+	const char *names[256];
+	size_t nd = 0;
+	const cJSON *d;
+	cJSON_ArrayForEach(d, dyn)
+		if (cJSON_IsString(d) && nd < 256)
+			names[nd++] = d->valuestring;
+	const cJSON *ld = cJSON_GetObjectItemCaseSensitive(s->meta, "light_derivatives");
+	unsigned flags = SL_SPEC_CACHE_PARAMS | (cJSON_IsTrue(ld) ? SL_SPEC_LIGHT_DERIVATIVES : 0);
+	sf->spec = sl_specialize_ex(sf->prog, names, nd, flags, s->diag);
+	if (!sf->spec)
+		return fail(s, "cannot specialize surface '%s'", sf->name);
+	struct sl_spec *sp = sf->spec;
+	uint8_t *steps = NULL;
+	if (sp->needs_stencil) {
+		steps = rl_xcalloc(sp->ncached + 1, 1);
+		memcpy(steps, sp->cached_deriv, sp->ncached);
+	}
+	/* kernels: the surface alone, then with each light shader */
+	bool ok = make_kernel(s, sf, NULL, &sf->base, steps);
+	if (ok && sp->needs_stencil && !sf->base.layout.in_step_u)
+		ok = fail(s, "surface '%s' needs derivative stencils, which its GPU program "
+			  "does not take", sf->name);
+	sf->lk = rl_xcalloc(s->nlshaders + 1, sizeof(*sf->lk));
+	for (uint32_t k = 0; ok && k < s->nlshaders; k++)
+		ok = make_kernel(s, sf, s->lshaders[k].prog, &sf->lk[k], steps);
+	free(steps);
+	if (!ok)
+		return false;
+	/* the parameter values of each paramset */
+	sf->init = *sp->dynamic;
+	sf->init.ncode = sp->dynamic->body_begin;
+	sf->init_x = sl_exec_create(&sf->init, 1);
+	const uint32_t *paramset = uint_channel(t, "paramset");
+	const cJSON *psets = cJSON_GetObjectItemCaseSensitive(sf->meta, "param_sets");
+	sf->nparamsets = paramset ? (uint32_t)cJSON_GetArraySize(psets) : 0;
+	if (paramset && !sf->nparamsets)
+		return fail(s, "surface '%s' has per-object parameters but no values", sf->name);
+	sf->pvals = rl_xcalloc(sf->nparamsets + 1, sizeof(*sf->pvals));
+	for (uint32_t ps = 0; ps < sf->nparamsets; ps++) {
+		sl_exec_reset_params(sf->init_x);
+		if (!sf->init_x ||
+		    !shot_meta_set_params(sf->init_x, cJSON_GetArrayItem(psets, (int)ps), s->path,
+					  s->diag) ||
+		    !eval_params(sf->init_x, sp->dynamic, NULL, s->w2c, &sf->pvals[ps]))
+			return fail(s, "surface '%s': its parameter values failed", sf->name);
+	}
+	if (!sf->nparamsets && sf->init_x) {
+		/* one set: the defaults (and whatever the slice reads as a uniform) */
+		sf->pvals[0].on = true;
+		eval_params(sf->init_x, sp->dynamic, NULL, s->w2c, &sf->pvals[0]);
+		sf->nparamsets = 1;
+		paramset = NULL;
+	}
+
+	/* rows: per tile, per band; sorted by paramset within each range */
+	const uint32_t *object = uint_channel(t, "object");
+	const uint32_t *lightset = uint_channel(t, "lightset");
+	uint32_t *perm = rl_xmalloc((sf->nrows + 1) * sizeof(uint32_t));
+	for (uint64_t i = 0; i < sf->nrows; i++)
+		perm[i] = (uint32_t)i;
+	uint32_t *ps_sorted = paramset ? rl_xmalloc((sf->nrows + 1) * sizeof(uint32_t)) : NULL;
+	if (ps_sorted)
+		memcpy(ps_sorted, paramset, sf->nrows * sizeof(uint32_t));
+	const cJSON *tile;
+	cJSON_ArrayForEach(tile, tiles) {
+		const cJSON *g = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(tile, "surfaces"),
+						    (int)si);
+		const cJSON *fr = cJSON_GetObjectItemCaseSensitive(g, "first_row");
+		const cJSON *lv = cJSON_GetObjectItemCaseSensitive(g, "levels");
+		if (!cJSON_IsNumber(fr) || fr->valuedouble < 0 || cJSON_GetArraySize(lv) != NBANDS) {
+			free(perm);
+			free(ps_sorted);
+			return fail(s, "the tiling of surface '%s' in the metadata is malformed",
+				    sf->name);
+		}
+		uint64_t base = (uint64_t)fr->valuedouble, prev = 0;
+		for (int b = 0; b < NBANDS; b++) {
+			const cJSON *c = cJSON_GetArrayItem(lv, b);
+			double cnt = cJSON_IsNumber(c) ? c->valuedouble : -1;
+			if (cnt < (double)prev || base + cnt > (double)sf->nrows) {
+				free(perm);
+				free(ps_sorted);
+				return fail(s, "the tiling of surface '%s' does not fit its table",
+					    sf->name);
+			}
+			uint64_t lo = base + prev, hi = base + (uint64_t)cnt;
+			if (ps_sorted && hi > lo) {
+				struct rowkey *keys = rl_xmalloc((hi - lo) * sizeof(*keys));
+				for (uint64_t r = lo; r < hi; r++)
+					keys[r - lo] = (struct rowkey){ paramset[r], (uint32_t)r };
+				qsort(keys, hi - lo, sizeof(*keys), rowkey_cmp);
+				for (uint64_t r = lo; r < hi; r++) {
+					perm[r] = keys[r - lo].row;
+					ps_sorted[r] = keys[r - lo].ps;
+				}
+				free(keys);
+			}
+			add_runs(sf, b, lo, hi, ps_sorted);
+			prev = (uint64_t)cnt;
+		}
+	}
+	/* the ids of the framebuffer: old row -> new row */
+	for (uint64_t r = 0; r < sf->nrows; r++)
+		remap[sf->id0 + perm[r]] = (uint32_t)(sf->id0 + r);
+	free(ps_sorted);
+
+	/* the records, uploaded a tile's rows at a time */
+	const struct sl_glsl_layout *lay = &sf->base.layout;
+	uint32_t stride = lay->in_stride;
+	uint32_t *off = rl_xcalloc(sp->ncached + 1, sizeof(uint32_t));
+	uint32_t cstride = sl_spec_cache_layout(sp, off);
+	const cJSON *chans = cJSON_GetObjectItemCaseSensitive(sf->meta, "channels");
+	/* per record float: its source column */
+	const float **col = rl_xcalloc((size_t)stride + 1, sizeof(float *));
+	float **owned = rl_xcalloc((size_t)stride * 3 + 3, sizeof(float *));
+	uint32_t nowned = 0;
+	for (uint32_t k = 0; ok && k < sp->ncached; k++) {
+		uint32_t end = k + 1 < sp->ncached ? off[k + 1] : cstride;
+		for (uint32_t c = 0; ok && c < end - off[k]; c++) {
+			char nm[64];
+			snprintf(nm, sizeof(nm), "c%03u.%02u", k, c);
+			uint32_t at = lay->in_offset[k] + c;
+			ok = at < stride;
+			if (ok)
+				col[at] = shot_meta_channel(t, chans, nm, &owned[nowned]);
+			if (ok && owned[nowned])
+				nowned++;
+			ok = ok && col[at];
+			if (ok && lay->in_step_u && lay->in_step_u[k] != UINT32_MAX) {
+				snprintf(nm, sizeof(nm), "u%03u.%02u", k, c);
+				col[lay->in_step_u[k] + c] =
+					shot_meta_channel(t, chans, nm, &owned[nowned]);
+				if (owned[nowned])
+					nowned++;
+				snprintf(nm, sizeof(nm), "v%03u.%02u", k, c);
+				col[lay->in_step_v[k] + c] =
+					shot_meta_channel(t, chans, nm, &owned[nowned]);
+				if (owned[nowned])
+					nowned++;
+				ok = col[lay->in_step_u[k] + c] && col[lay->in_step_v[k] + c];
+			}
+		}
+	}
+	if (ok && lay->in_step_u && lay->du_offset != UINT32_MAX) {
+		col[lay->du_offset] = shot_meta_channel(t, chans, "du", &owned[nowned]);
+		if (owned[nowned])
+			nowned++;
+		col[lay->dv_offset] = shot_meta_channel(t, chans, "dv", &owned[nowned]);
+		if (owned[nowned])
+			nowned++;
+		ok = col[lay->du_offset] && col[lay->dv_offset];
+	}
+	for (uint32_t c = 0; ok && c < stride; c++)
+		ok = col[c] != NULL;
+	free(off);
+	if (!ok)
+		fail(s, "the table '%s' does not hold what shader '%s' caches (bake again)", table,
+		     sf->name);
+	if (ok)
+		sf->records = buffer(s, (size_t)sf->nrows * stride * sizeof(float) + 4, NULL);
+	if (ok && sf->records) {
+		/* one tile's rows at a time: staging stays a tile's size */
+		cJSON_ArrayForEach(tile, tiles) {
+			const cJSON *g = cJSON_GetArrayItem(
+				cJSON_GetObjectItemCaseSensitive(tile, "surfaces"), (int)si);
+			uint64_t lo = (uint64_t)cJSON_GetObjectItemCaseSensitive(g, "first_row")
+					      ->valuedouble;
+			uint64_t hi = lo + (uint64_t)cJSON_GetArrayItem(
+						   cJSON_GetObjectItemCaseSensitive(g, "levels"),
+						   NBANDS - 1)->valuedouble;
+			if (hi <= lo)
+				continue;
+			float *rec = rl_xmalloc((hi - lo) * stride * sizeof(float));
+			for (uint64_t r = lo; r < hi; r++)
+				for (uint32_t c = 0; c < stride; c++) {
+					float v = col[c][perm[r]];
+					rec[(r - lo) * stride + c] = isfinite(v) ? v : 0.0f;
+				}
+			ok = gpu_buffer_write(sf->records, lo * stride * sizeof(float),
+					      (hi - lo) * stride * sizeof(float), rec);
+			free(rec);
+			if (!ok) {
+				fail(s, "uploading the samples of '%s' failed", sf->name);
+				break;
+			}
+		}
+	} else {
+		ok = false;
+	}
+	float *obj = ok ? rl_xmalloc((sf->nrows + 1) * sizeof(float)) : NULL;
+	for (uint64_t r = 0; ok && r < sf->nrows; r++) {
+		uint32_t o = object ? object[perm[r]] : 0;
+		if (o >= nobjects)
+			o = 0;
+		obj[r] = (float)o;
+		if (lightset && lightset_of_object[o] == UINT32_MAX)
+			lightset_of_object[o] = lightset[perm[r]];
+	}
+	if (ok)
+		sf->object = buffer(s, (sf->nrows + 1) * sizeof(float), obj);
+	ok = ok && sf->object;
+	free(obj);
+	for (uint32_t i = 0; i < nowned; i++)
+		free(owned[i]);
+	free(owned);
+	free(col);
+	free(perm);
+	return ok;
+}
+
+static uint32_t json_uint(const cJSON *o, const char *key)
+{
+	const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+	return cJSON_IsNumber(v) && v->valuedouble >= 0 && v->valuedouble < 4294967295.0
+		       ? (uint32_t)v->valuedouble : 0;
+}
+
+static bool load_framebuffer(struct gpu_shot *s, const struct shot_file *f, const uint32_t *remap)
+{
+	const struct shot_deep *ifb = shot_find_deep(f, "ifb");
+	const struct shot_table *pix = shot_find_table(f, "pixels");
+	if (!ifb || !pix || ifb->width != s->width || ifb->height != s->height ||
+	    pix->nrows != (uint64_t)s->width * s->height || ifb->nchannels != 2 ||
+	    ifb->channels[0].type != SHOT_UINT || pix->channels[0].type == SHOT_UINT)
+		return fail(s, "not a shot this relight can preview (missing or inconsistent parts)");
+	uint64_t ne = ifb->offsets[(size_t)s->width * s->height];
+	uint32_t *ids = rl_xmalloc((ne + 1) * sizeof(uint32_t));
+	const uint32_t *sid = ifb->channels[0].data;
+	for (uint64_t e = 0; e < ne; e++)
+		ids[e] = sid[e] < s->nsamples ? remap[sid[e]] : UINT32_MAX;
+	struct gpu_ifb_desc d = {
+		.width = s->width, .height = s->height, .offsets = ifb->offsets, .sample = ids,
+		.weight = ifb->channels[1].data, .alpha = pix->channels[0].data,
+	};
+	static const char *const names[3] = { "level0", "level1", "level2" };
+	static const uint32_t block[3] = { 4, 2, 1 };
+	uint32_t *lids[3] = { 0 };
+	bool ok = true;
+	for (int L = 0; L < 3 && ok; L++) {
+		const struct shot_table *lt = shot_find_table(f, names[L]);
+		uint64_t nb = (uint64_t)((s->width + block[L] - 1) / block[L]) *
+			      ((s->height + block[L] - 1) / block[L]);
+		if (!lt || lt->nchannels != 2 || lt->channels[0].type != SHOT_UINT ||
+		    lt->nrows != nb) {
+			ok = fail(s, "the refinement level table '%s' is missing or malformed",
+				  names[L]);
+			break;
+		}
+		lids[L] = rl_xmalloc((nb + 1) * sizeof(uint32_t));
+		const uint32_t *b = lt->channels[0].data;
+		for (uint64_t i = 0; i < nb; i++)
+			lids[L][i] = b[i] < s->nsamples ? remap[b[i]] : UINT32_MAX;
+		d.level_sample[L] = lids[L];
+		d.level_weight[L] = lt->channels[1].data;
+		s->level_entries[L] = nb;
+	}
+	s->level_entries[3] = ne;
+	char err[512];
+	if (ok) {
+		s->ifb = gpu_ifb_create(s->ctx, &d, err, sizeof(err));
+		if (!s->ifb)
+			ok = fail(s, "%s", err);
+		else
+			s->bytes += gpu_ifb_bytes(s->ifb);
+	}
+	free(ids);
+	for (int L = 0; L < 3; L++)
+		free(lids[L]);
+	return ok;
+}
+
+static void build_graph(struct gpu_shot *s)
+{
+	for (uint32_t i = 0; i < s->nlights; i++) {
+		struct light *L = &s->lights[i];
+		const struct kernel *k = s->nsurfaces ? &s->surfaces[0].lk[L->shader] : NULL;
+		if (k && k->layout.nshadows) {
+			char name[300];
+			snprintf(name, sizeof(name), "shadow:%s", L->name);
+			L->maps = rl_xcalloc(k->layout.nshadows, sizeof(*L->maps));
+			L->nmaps = k->layout.nshadows;
+			L->shadow_node = graph_add(s->graph, name, GRAPH_DEPTH_MAP, run_shadow, s);
+			graph_connect(s->graph, L->node, L->shadow_node);
+		}
+	}
+	for (uint32_t i = 0; i < s->nsurfaces; i++) {
+		struct surface *sf = &s->surfaces[i];
+		if (sf->spec->slice.ninputs && cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(
+						       sf->meta, "dynamic_params")) > 0) {
+			char name[300];
+			snprintf(name, sizeof(name), "surface:%s", sf->name);
+			sf->node = graph_add(s->graph, name, GRAPH_PARAMS, NULL, NULL);
+		}
+	}
+	for (int b = 0; b < NBANDS; b++) {
+		char name[32];
+		snprintf(name, sizeof(name), "shade:band%d", b);
+		s->shade[b] = graph_add(s->graph, name, GRAPH_SAMPLE_COLORS, run_shade, s);
+		for (uint32_t i = 0; i < s->nlights; i++) {
+			graph_connect(s->graph, s->lights[i].node, s->shade[b]);
+			if (s->lights[i].shadow_node)
+				graph_connect(s->graph, s->lights[i].shadow_node, s->shade[b]);
+		}
+		for (uint32_t i = 0; i < s->nsurfaces; i++)
+			if (s->surfaces[i].node)
+				graph_connect(s->graph, s->surfaces[i].node, s->shade[b]);
+	}
+	for (int L = 0; L < NBANDS; L++) {
+		char name[32];
+		snprintf(name, sizeof(name), "resolve:level%d", L);
+		s->resolve[L] = graph_add(s->graph, name, GRAPH_IMAGE, run_resolve, s);
+		for (int b = 0; b <= L; b++)
+			graph_connect(s->graph, s->shade[b], s->resolve[L]);
+	}
+}
+
+struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
+			       const struct gpu_shot_opts *opts)
+{
+	struct gpu_shot *s = rl_xcalloc(1, sizeof(*s));
+	s->ctx = ctx;
+	s->diag = opts && opts->diag ? opts->diag : stderr;
+	s->path = rl_xstrdup(path);
+	s->budget = opts && opts->budget ? opts->budget : DEFAULT_BUDGET;
+	s->solo = -1;
+	s->graph = graph_create();
+	double t0 = now_ms();
+	char err[1024] = "";
+	struct shot_file *f = shot_read(path, err, sizeof(err));
+	if (!f) {
+		fprintf(s->diag, "relight: error: %s\n", err);
+		gpu_shot_close(s);
+		return NULL;
+	}
+	bool ok = true;
+	s->meta = cJSON_Parse(f->metadata ? f->metadata : "");
+	const cJSON *tiles = cJSON_GetObjectItemCaseSensitive(
+		cJSON_GetObjectItemCaseSensitive(s->meta, "tiling"), "tiles");
+	s->width = json_uint(s->meta, "width");
+	s->height = json_uint(s->meta, "height");
+	if (!cJSON_IsObject(s->meta) || !s->width || !s->height ||
+	    !shot_meta_matrix(s->meta, "world_to_camera", s->w2c) || !cJSON_IsArray(tiles))
+		ok = fail(s, "not a shot this relight can preview (its metadata is incomplete)");
+	if (ok && !sl_m44_inverse(s->c2w, s->w2c))
+		ok = fail(s, "the camera of the shot is singular");
+	const cJSON *sfs = cJSON_GetObjectItemCaseSensitive(s->meta, "surfaces");
+	const cJSON *sj, *sfs_ok = ok ? sfs : NULL;
+	uint32_t nobjects = 1;
+	cJSON_ArrayForEach(sj, sfs_ok) {
+		const char *tn = shot_meta_str(sj, "table");
+		const struct shot_table *t = tn ? shot_find_table(f, tn) : NULL;
+		s->nsamples += t ? t->nrows : 0;
+		const uint32_t *o = t ? uint_channel(t, "object") : NULL;
+		for (uint64_t r = 0; o && r < t->nrows; r++)
+			if (o[r] < (1u << 24) && o[r] + 1 > nobjects)
+				nobjects = o[r] + 1;
+	}
+	if (ok && s->nsamples >= (1u << 30))
+		ok = fail(s, "%llu shading samples are more than one GPU shot holds",
+			  (unsigned long long)s->nsamples);
+	s->nobjects = nobjects;
+	if (ok) {
+		s->tex = reyes_texsys_create(opts && opts->texture_path ? opts->texture_path : ".",
+					     s->c2w, s->diag);
+		ok = load_lights(s);
+	}
+	s->accumulate = ok ? gpu_program(ctx, accumulate_src, s->diag) : NULL;
+	s->combine = ok ? gpu_program(ctx, combine_src, s->diag) : NULL;
+	if (ok && (!s->accumulate || !s->combine))
+		ok = fail(s, "the runtime's own GPU programs do not compile");
+	int nsf = cJSON_GetArraySize(sfs);
+	s->surfaces = rl_xcalloc((size_t)nsf + 1, sizeof(*s->surfaces));
+	uint32_t *remap = rl_xmalloc((s->nsamples + 1) * sizeof(uint32_t));
+	for (uint64_t i = 0; i < s->nsamples; i++)
+		remap[i] = (uint32_t)i;
+	uint32_t *lightset_of = rl_xmalloc((size_t)nobjects * sizeof(uint32_t));
+	for (uint32_t i = 0; i < nobjects; i++)
+		lightset_of[i] = UINT32_MAX;
+	sfs_ok = ok ? sfs : NULL;
+	cJSON_ArrayForEach(sj, sfs_ok) {
+		struct surface *sf = &s->surfaces[s->nsurfaces];
+		sf->meta = sj;
+		s->nsurfaces++;
+		if (opts && opts->progress)
+			fprintf(stderr, "\rrelight: loading %s: surface %u/%d", path, s->nsurfaces,
+				nsf);
+		if (!load_surface(s, f, s->nsurfaces - 1, tiles, remap, lightset_of, nobjects)) {
+			ok = false;
+			break;
+		}
+	}
+	if (opts && opts->progress)
+		fprintf(stderr, "\n");
+	size_t cbytes = (size_t)s->nsamples * 3 * sizeof(float) + 16;
+	size_t sbytes = 16;
+	for (uint32_t i = 0; i < s->nsurfaces; i++) {
+		size_t b = (size_t)s->surfaces[i].nrows * 4;
+		for (uint32_t k = 0; k <= s->nlshaders; k++) {
+			const struct kernel *kk = k < s->nlshaders ? &s->surfaces[i].lk[k]
+								 : &s->surfaces[i].base;
+			if ((size_t)kk->layout.out_stride * b > sbytes)
+				sbytes = (size_t)kk->layout.out_stride * b;
+		}
+	}
+	if (ok) {
+		float *zero = rl_xcalloc(cbytes / sizeof(float) + 1, sizeof(float));
+		ok = (s->base = buffer(s, cbytes, zero)) && (s->cache = buffer(s, cbytes, zero)) &&
+		     (s->colors = buffer(s, cbytes, zero)) && (s->zero = buffer(s, cbytes, zero)) &&
+		     (s->scratch = buffer(s, sbytes, NULL));
+		free(zero);
+		size_t ib = (size_t)s->width * s->height * 4 * sizeof(float);
+		for (int L = 0; ok && L < NBANDS; L++)
+			ok = (s->rgba[L] = buffer(s, ib, NULL)) != NULL;
+		ok = ok && (s->px8 = buffer(s, (size_t)s->width * s->height * 4, NULL));
+	}
+	/* links: as the bake's light sets left them */
+	const cJSON *sets = cJSON_GetObjectItemCaseSensitive(s->meta, "lightsets");
+	for (uint32_t i = 0; ok && i < s->nlights; i++) {
+		struct light *L = &s->lights[i];
+		L->link_cpu = rl_xcalloc(nobjects + 1, sizeof(float));
+		for (uint32_t o = 0; o < nobjects; o++) {
+			const cJSON *set = lightset_of[o] == UINT32_MAX
+						   ? NULL : cJSON_GetArrayItem(sets, (int)lightset_of[o]);
+			const cJSON *li;
+			cJSON_ArrayForEach(li, set)
+				if (cJSON_IsNumber(li) && (uint32_t)li->valuedouble == i)
+					L->link_cpu[o] = 1.0f;
+		}
+		ok = (L->link = buffer(s, (nobjects + 1) * sizeof(float), L->link_cpu)) != NULL;
+	}
+	free(lightset_of);
+	ok = ok && load_framebuffer(s, f, remap);
+	free(remap);
+	for (int b = 0; b < NBANDS; b++)
+		s->cached[b] = rl_xcalloc(s->nlights + 1, sizeof(struct lstate));
+	if (ok)
+		build_graph(s);
+	shot_free(f);
+	if (!ok) {
+		gpu_shot_close(s);
+		return NULL;
+	}
+	rl_log(RL_LOG_INFO, "%s: loaded in %.0f ms, %.1f MiB of GPU memory", path, now_ms() - t0,
+	       (double)s->bytes / 1048576.0);
+	return s;
+}
+
+static void kernel_free(struct kernel *k)
+{
+	free(k->glsl);
+	sl_glsl_layout_finish(&k->layout);
+}
+
+void gpu_shot_close(struct gpu_shot *s)
+{
+	if (!s)
+		return;
+	for (uint32_t i = 0; i < s->nsurfaces; i++) {
+		struct surface *sf = &s->surfaces[i];
+		kernel_free(&sf->base);
+		for (uint32_t k = 0; sf->lk && k < s->nlshaders; k++)
+			kernel_free(&sf->lk[k]);
+		free(sf->lk);
+		for (int b = 0; b < NBANDS; b++)
+			rl_vec_free(sf->runs[b]);
+		for (uint32_t p = 0; p < sf->nparamsets; p++)
+			lstate_free(&sf->pvals[p]);
+		free(sf->pvals);
+		gpu_buffer_destroy(sf->records);
+		gpu_buffer_destroy(sf->object);
+		sl_exec_destroy(sf->init_x);
+		sl_spec_destroy(sf->spec);
+		sl_program_destroy(sf->prog);
+		free(sf->name);
+	}
+	free(s->surfaces);
+	for (uint32_t i = 0; i < s->nlights; i++) {
+		struct light *L = &s->lights[i];
+		for (uint32_t m = 0; m < L->nmaps; m++)
+			gpu_shadow_map_destroy(L->maps[m]);
+		free(L->maps);
+		free(L->name);
+		sl_exec_destroy(L->init);
+		lstate_free(&L->cur);
+		gpu_buffer_destroy(L->link);
+		free(L->link_cpu);
+	}
+	for (int b = 0; b < NBANDS; b++) {
+		for (uint32_t i = 0; s->cached[b] && i < s->nlights; i++)
+			lstate_free(&s->cached[b][i]);
+		free(s->cached[b]);
+		gpu_buffer_destroy(s->rgba[b]);
+	}
+	for (uint32_t k = 0; k < s->nlshaders; k++)
+		sl_program_destroy(s->lshaders[k].prog);
+	free(s->lshaders);
+	gpu_ifb_destroy(s->ifb);
+	gpu_buffer_destroy(s->base);
+	gpu_buffer_destroy(s->cache);
+	gpu_buffer_destroy(s->colors);
+	gpu_buffer_destroy(s->scratch);
+	gpu_buffer_destroy(s->zero);
+	gpu_buffer_destroy(s->px8);
+	reyes_texsys_destroy(s->tex);
+	graph_destroy(s->graph);
+	cJSON_Delete(s->meta);
+	free(s->path);
+	free(s);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Queries and edits                                                         */
+
+uint32_t gpu_shot_width(const struct gpu_shot *s)
+{
+	return s->width;
+}
+
+uint32_t gpu_shot_height(const struct gpu_shot *s)
+{
+	return s->height;
+}
+
+size_t gpu_shot_bytes(const struct gpu_shot *s)
+{
+	size_t b = s->bytes;
+	for (uint32_t i = 0; i < s->nlights; i++)
+		for (uint32_t m = 0; m < s->lights[i].nmaps; m++)
+			b += s->lights[i].maps[m] ? gpu_shadow_map_bytes(s->lights[i].maps[m]) : 0;
+	return b;
+}
+
+uint64_t gpu_shot_samples(const struct gpu_shot *s)
+{
+	return s->nsamples;
+}
+
+const struct graph *gpu_shot_graph(const struct gpu_shot *s)
+{
+	return s->graph;
+}
+
+uint32_t gpu_shot_light_count(const struct gpu_shot *s)
+{
+	return s->nlights;
+}
+
+const char *gpu_shot_light_name(const struct gpu_shot *s, uint32_t i)
+{
+	return i < s->nlights ? s->lights[i].name : NULL;
+}
+
+const char *gpu_shot_light_shader(const struct gpu_shot *s, uint32_t i)
+{
+	return i < s->nlights ? s->lshaders[s->lights[i].shader].prog->name : NULL;
+}
+
+int gpu_shot_find_light(const struct gpu_shot *s, const char *name)
+{
+	for (uint32_t i = 0; name && i < s->nlights; i++)
+		if (!strcmp(s->lights[i].name, name))
+			return (int)i;
+	return -1;
+}
+
+static struct light *find(struct gpu_shot *s, const char *name, char *err, size_t errlen)
+{
+	int i = gpu_shot_find_light(s, name);
+	if (i >= 0)
+		return &s->lights[i];
+	char list[512] = "";
+	size_t at = 0;
+	for (uint32_t k = 0; k < s->nlights && at + 2 < sizeof(list); k++) {
+		int w = snprintf(list + at, sizeof(list) - at, "%s%s", k ? ", " : "",
+				 s->lights[k].name);
+		at += w > 0 ? (size_t)w : 0;
+	}
+	errorf(err, errlen, "no light named '%s'; the shot's lights are: %s", name ? name : "",
+	       list);
+	return NULL;
+}
+
+/* Something about light @L changed: everything downstream is out of date. */
+static void touched(struct gpu_shot *s, struct light *L)
+{
+	(void)s;
+	graph_touch(L->node);
+}
+
+/* An edit of @L: unfreeze it, and freeze the lights earlier edits unfroze. */
+static void editing(struct gpu_shot *s, struct light *L)
+{
+	for (uint32_t i = 0; i < s->nlights; i++) {
+		struct light *o = &s->lights[i];
+		if (o != L && !o->frozen && !o->pinned) {
+			o->frozen = true;
+			touched(s, o);
+		}
+	}
+	L->frozen = false;
+}
+
+bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
+		  const float *values, uint32_t n, char *err, size_t errlen)
+{
+	struct light *L = find(s, light, err, errlen);
+	if (!L)
+		return false;
+	const struct sl_program *lp = s->lshaders[L->shader].prog;
+	float v[16];
+	uint32_t nv;
+	if (!values || !param ||
+	    !shot_meta_check_edit(lp, L->name, param, values, n, v, &nv, err, errlen))
+		return false;
+	if (!sl_exec_set_param(L->init, param, v, nv)) {
+		errorf(err, errlen, "light '%s': parameter '%s' cannot be set", L->name, param);
+		return false;
+	}
+	struct lstate next = { 0 };
+	lstate_copy(&next, &L->cur);
+	if (!eval_params(L->init, lp, L->to_camera, s->w2c, &next)) {
+		lstate_free(&next);
+		errorf(err, errlen, "light '%s': its parameter defaults failed", L->name);
+		return false;
+	}
+	lstate_free(&L->cur);
+	L->cur = next;
+	editing(s, L);
+	touched(s, L);
+	return true;
+}
+
+bool gpu_shot_get(const struct gpu_shot *s, const char *light, const char *param, float out[16],
+		  uint32_t *n)
+{
+	int i = gpu_shot_find_light(s, light);
+	if (i < 0 || !param)
+		return false;
+	const struct light *L = &s->lights[i];
+	const struct sl_program *lp = s->lshaders[L->shader].prog;
+	uint32_t at = 0;
+	for (uint32_t k = 0; k < lp->nparams; k++) {
+		const struct sl_reg *g = &lp->regs[lp->params[k].reg];
+		if (g->type == SL_TYPE_STRING)
+			continue;
+		uint32_t ne = g->arraylen > 0 ? (uint32_t)g->arraylen : 1;
+		uint32_t tot = ne * (uint32_t)sl_reg_ncomp(g);
+		if (!strcmp(lp->params[k].name, param)) {
+			if (tot > 16 || at + tot > L->cur.nv)
+				return false;
+			memcpy(out, L->cur.v + at, tot * sizeof(float));
+			*n = tot;
+			return true;
+		}
+		at += tot;
+	}
+	return false;
+}
+
+bool gpu_shot_mute(struct gpu_shot *s, const char *light, bool muted, char *err, size_t errlen)
+{
+	struct light *L = find(s, light, err, errlen);
+	if (!L)
+		return false;
+	if (L->muted != muted) {
+		L->muted = muted;
+		touched(s, L);
+	}
+	return true;
+}
+
+bool gpu_shot_solo(struct gpu_shot *s, const char *light, char *err, size_t errlen)
+{
+	int solo = -1;
+	if (light) {
+		struct light *L = find(s, light, err, errlen);
+		if (!L)
+			return false;
+		solo = (int)(L - s->lights);
+	}
+	if (solo != s->solo) {
+		s->solo = solo;
+		for (uint32_t i = 0; i < s->nlights; i++)
+			touched(s, &s->lights[i]);
+	}
+	return true;
+}
+
+bool gpu_shot_link(struct gpu_shot *s, const char *light, uint32_t object, bool linked,
+		   char *err, size_t errlen)
+{
+	struct light *L = find(s, light, err, errlen);
+	if (!L)
+		return false;
+	if (object >= s->nobjects) {
+		errorf(err, errlen, "no object %u in the shot (its objects are 0 to %u)", object,
+		       s->nobjects - 1);
+		return false;
+	}
+	float v = linked ? 1.0f : 0.0f;
+	if (L->link_cpu[object] == v)
+		return true;
+	L->link_cpu[object] = v;
+	if (!gpu_buffer_write(L->link, object * sizeof(float), sizeof(float), &v)) {
+		errorf(err, errlen, "updating the links of light '%s' failed", L->name);
+		return false;
+	}
+	L->link_version = ++s->link_version;
+	touched(s, L);
+	return true;
+}
+
+bool gpu_shot_freeze(struct gpu_shot *s, const char *light, bool frozen, char *err,
+		     size_t errlen)
+{
+	struct light *L = find(s, light, err, errlen);
+	if (!L)
+		return false;
+	L->pinned = !frozen;
+	if (L->frozen != frozen) {
+		L->frozen = frozen;
+		touched(s, L);
+	}
+	return true;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Rendering                                                                 */
+
+bool gpu_shot_render(struct gpu_shot *s, int level, struct gpu_shot_stats *st)
+{
+	struct gpu_shot_stats local;
+	if (!st)
+		st = &local;
+	memset(st, 0, sizeof(*st));
+	if (level < 0 || level >= NBANDS)
+		return fail(s, "no refinement level %d (0 to %d)", level, NBANDS - 1);
+	double t0 = now_ms();
+	s->stats = st;
+	bool ok = graph_pull(s->graph, s->resolve[level]) && gpu_finish(s->ctx);
+	s->stats = NULL;
+	st->entries = s->level_entries[level];
+	st->ms = now_ms() - t0;
+	return ok;
+}
+
+bool gpu_shot_read_rgba(struct gpu_shot *s, int level, float *rgba)
+{
+	if (level < 0 || level >= NBANDS || graph_node_runs(s->resolve[level]) == 0)
+		return false;
+	return gpu_buffer_read(s->rgba[level], 0, (size_t)s->width * s->height * 4 * sizeof(float),
+			       rgba);
+}
+
+bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px)
+{
+	if (level < 0 || level >= NBANDS || graph_node_runs(s->resolve[level]) == 0)
+		return false;
+	uint32_t n = s->width * s->height;
+	return gpu_encode_srgb8(s->ctx, s->rgba[level], n, s->px8) &&
+	       gpu_buffer_read(s->px8, 0, (size_t)n * 4, px);
+}
