@@ -54,7 +54,7 @@ static void usage(FILE *out)
 		"  --json               Print one JSON object instead of text, with the keys\n"
 		"                       a, b, width, height, pixels, channels, rmse, mean_pct,\n"
 		"                       max_pct, psnr_db (null when identical), max_at [x, y],\n"
-		"                       over_1pct, nonfinite [in A, in B], alpha (an object\n"
+		"                       over_1pct, nonfinite [in A, in B], max_rel, alpha (an object\n"
 		"                       with the same error keys, or null), heatmap (null\n"
 		"                       without --heatmap), scale_pct\n"
 		"  --heatmap OUT.png    Write the per-pixel error (the largest over R, G, B) as\n"
@@ -63,6 +63,10 @@ static void usage(FILE *out)
 		"                       the scale; errors beyond the scale are white\n"
 		"  --scale S            The error, in percent, at the top of the heat map's\n"
 		"                       ramp (default 5)\n"
+		"  --fail-rel R         Exit with status 1 when the largest relative difference\n"
+		"                       of the linear colour values, |a - b| / max(|a|, |b|),\n"
+		"                       is above R (values under 1e-3 are compared absolutely,\n"
+		"                       as if they were 1e-3); reported as max_rel\n"
 		"  --fail-above PCT     Exit with status 1 when the maximum error is above PCT\n"
 		"                       percent (the report is printed all the same)\n"
 		"  -h, --help           Show this help and exit\n"
@@ -96,7 +100,11 @@ struct stats {
 	uint32_t max_x, max_y;
 	uint64_t over_1pct;             /* pixels whose error exceeds 0.01 */
 	uint64_t nonfinite[2];          /* non-finite values in A and in B */
+	double max_rel;                 /* the largest relative difference of linear values */
 };
+
+/* Values under this are compared absolutely by the relative difference. */
+#define REL_FLOOR 1e-3
 
 static int find_channel(const struct reyes_image *im, const char *name)
 {
@@ -150,6 +158,10 @@ static void measure(const struct reyes_image *a, const struct reyes_image *b, co
 					lin = enc = 1.0;
 				} else {
 					lin = (double)va - (double)vb;
+					double m = fmax(fmax(fabs((double)va), fabs((double)vb)),
+							REL_FLOOR);
+					if (fabs(lin) / m > s->max_rel)
+						s->max_rel = fabs(lin) / m;
 					enc = srgb ? fabs((double)reyes_srgb_encode(va) -
 							  (double)reyes_srgb_encode(vb))
 						   : fabs((double)clamp01(va) - (double)clamp01(vb));
@@ -226,6 +238,8 @@ static void json_stats(FILE *out, const struct stats *s)
 	fprintf(out, ", \"max_at\": [%" PRIu32 ", %" PRIu32 "], \"over_1pct\": %" PRIu64
 		", \"nonfinite\": [%" PRIu64 ", %" PRIu64 "]",
 		s->max_x, s->max_y, s->over_1pct, s->nonfinite[0], s->nonfinite[1]);
+	fputs(", \"max_rel\": ", out);
+	json_number(out, s->max_rel);
 }
 
 struct report {
@@ -280,6 +294,7 @@ static void print_text(FILE *out, const struct report *r)
 		fprintf(out, " %s", r->channels[k]);
 	fputc('\n', out);
 	fprintf(out, "  RMSE (linear)      %.6g\n", rmse(s));
+	fprintf(out, "  max relative       %.3g (linear)\n", s->max_rel);
 	fprintf(out, "  mean error         %.4f %% of the 8-bit range (sRGB)\n", mean_pct(s));
 	fprintf(out, "  max error          %.4f %% at pixel (%" PRIu32 ", %" PRIu32 ")\n",
 		100.0 * s->max_enc, s->max_x, s->max_y);
@@ -328,13 +343,14 @@ int cmd_diff(int argc, char **argv)
 {
 	bool json = false;
 	const char *heatmap = NULL;
-	double scale = 5.0, fail_above = -1.0;
+	double scale = 5.0, fail_above = -1.0, fail_rel = -1.0;
 	static const struct option long_opts[] = {
 		{ "help", no_argument, NULL, 'h' },
 		{ "json", no_argument, NULL, 'j' },
 		{ "heatmap", required_argument, NULL, 'H' },
 		{ "scale", required_argument, NULL, 's' },
 		{ "fail-above", required_argument, NULL, 'f' },
+		{ "fail-rel", required_argument, NULL, 'r' },
 		{ NULL, 0, NULL, 0 },
 	};
 	optind = 1;
@@ -362,6 +378,11 @@ int cmd_diff(int argc, char **argv)
 			if (!parse_pct(optarg, 0.0, false, &fail_above))
 				return usage_error("--fail-above needs a percentage from 0 to 100, "
 						   "not '%s'", optarg);
+			break;
+		case 'r':
+			if (!cmd_parse_double(optarg, 0.0, 1.0, &fail_rel))
+				return usage_error("--fail-rel needs a number from 0 to 1, not '%s'",
+						   optarg);
 			break;
 		case ':':
 			return usage_error("option '%s' needs an argument", argv[optind - 1]);
@@ -449,6 +470,11 @@ int cmd_diff(int argc, char **argv)
 	if (fail_above >= 0.0 && max_pct > fail_above) {
 		fprintf(stderr, "relight diff: the maximum error, %.4f %%, is above --fail-above "
 			"%g %%\n", max_pct, fail_above);
+		status = CMD_FAILED;
+	}
+	if (fail_rel >= 0.0 && r.colour.max_rel > fail_rel) {
+		fprintf(stderr, "relight diff: the largest relative difference, %.3g, is above "
+			"--fail-rel %g\n", r.colour.max_rel, fail_rel);
 		status = CMD_FAILED;
 	}
 done:

@@ -1,10 +1,9 @@
 /*
  * The computation graph: see graph.h.
  *
- * Nodes are kept in the order they were added; an edge may only join an
- * earlier node to a later one... no: edges may join any two nodes, and a
- * cycle is refused when the edge is made, so pulling is a depth-first walk
- * that always ends. Each node keeps, per input, the version of that input
+ * Nodes are kept in the order they were added. An edge may join any two
+ * nodes, but one that would close a cycle is refused when it is made, so
+ * pulling is a depth-first walk that always ends. Each node keeps, per input, the version of that input
  * it last ran with; it is stale when one of them differs, or when it was
  * touched, or when it never ran.
  */

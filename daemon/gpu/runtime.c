@@ -45,8 +45,6 @@
 
 #define DEFAULT_BUDGET ((size_t)2 << 30)
 #define NBANDS GPU_SHOT_LEVELS
-/* Subtractions from a band's cache before it is summed again from scratch. */
-#define MAX_SUBTRACTIONS 256
 #define MAX_PARAM_FLOATS 4096
 
 static double now_ms(void)
@@ -148,11 +146,10 @@ struct gpu_shot {
 	uint64_t level_entries[NBANDS];
 	struct gpu_buffer *base, *cache, *colors, *scratch, *zero;
 	struct gpu_buffer *rgba[NBANDS], *px8;
-	struct gpu_program *accumulate, *combine;
+	struct gpu_program *accumulate, *accumulate_d, *combine, *clear;
 
 	/* the light cache: per band, per light, what the cache holds of it */
 	struct lstate *cached[NBANDS];
-	uint32_t subtractions[NBANDS];
 	bool base_valid[NBANDS];
 	uint32_t link_version;
 
@@ -327,50 +324,56 @@ static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *la
 /*
  * Accumulate: dst[id] (+)= sign * link(object) * (out[row] - base[id]) for
  * rows [u_first, u_first + u_count) of a surface; or, for the base itself,
- * dst[id] = out[row].
+ * dst[id] = out[row]. DST is float (the colours, the base) or double (the
+ * light cache: a sum of floats whose magnitudes lie within 2^29 of each
+ * other is exact in double, so subtracting a contribution that was added
+ * gives back exactly the sum before it, however long the session).
  */
-static const char accumulate_src[] =
-	"#version 430 core\n"
-	"layout(local_size_x = 64) in;\n"
-	"layout(binding = 0) uniform samplerBuffer u_out;\n"
-	"layout(binding = 1) uniform samplerBuffer u_obj;\n"
-	"layout(binding = 2) uniform samplerBuffer u_link;\n"
-	"layout(binding = 3) uniform samplerBuffer u_base;\n"
-	"layout(std430, binding = 4) buffer Dst { float dst[]; };\n"
-	"uniform int u_count;\n"
-	"uniform int u_first;\n"
-	"uniform int u_ostride;\n"
-	"uniform int u_id0;\n"
-	"uniform int u_mode;   /* 0: dst = out; 1: dst += sign * link * (out - base) */\n"
-	"uniform float u_sign;\n"
-	"void main() {\n"
-	"	uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 64u;\n"
-	"	if (i >= uint(u_count)) return;\n"
-	"	int row = int(i) + u_first;\n"
-	"	int id = u_id0 + row;\n"
-	"	if (u_mode == 0) {\n"
-	"		for (int c = 0; c < 3; c++) {\n"
-	"			float v = texelFetch(u_out, row * u_ostride + c).x;\n"
-	"			dst[id * 3 + c] = isnan(v) || isinf(v) ? 0.0 : v;\n"
-	"		}\n"
-	"		return;\n"
-	"	}\n"
-	"	float w = u_sign * texelFetch(u_link, int(texelFetch(u_obj, row).x)).x;\n"
-	"	if (w == 0.0) return;\n"
-	"	for (int c = 0; c < 3; c++) {\n"
-	"		float v = texelFetch(u_out, row * u_ostride + c).x - texelFetch(u_base, id * 3 + c).x;\n"
-	"		v = isnan(v) || isinf(v) ? 0.0 : v * w;\n"
-	"		float r = dst[id * 3 + c] + v;\n"
-	"		dst[id * 3 + c] = isnan(r) || isinf(r) ? 0.0 : r;\n"
-	"	}\n"
-	"}\n";
+#define ACCUMULATE_SRC(DST) \
+	"#version 430 core\n" \
+	"layout(local_size_x = 64) in;\n" \
+	"layout(binding = 0) uniform samplerBuffer u_out;\n" \
+	"layout(binding = 1) uniform samplerBuffer u_obj;\n" \
+	"layout(binding = 2) uniform samplerBuffer u_link;\n" \
+	"layout(binding = 3) uniform samplerBuffer u_base;\n" \
+	"layout(std430, binding = 4) buffer Dst { " DST " dst[]; };\n" \
+	"uniform int u_count;\n" \
+	"uniform int u_first;\n" \
+	"uniform int u_ostride;\n" \
+	"uniform int u_id0;\n" \
+	"uniform int u_mode;\n" \
+	"uniform float u_sign;\n" \
+	"void main() {\n" \
+	"	uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 64u;\n" \
+	"	if (i >= uint(u_count)) return;\n" \
+	"	int row = int(i) + u_first;\n" \
+	"	int id = u_id0 + row;\n" \
+	"	if (u_mode == 0) {\n" \
+	"		for (int c = 0; c < 3; c++) {\n" \
+	"			float v = texelFetch(u_out, row * u_ostride + c).x;\n" \
+	"			dst[id * 3 + c] = " DST "(isnan(v) || isinf(v) ? 0.0 : v);\n" \
+	"		}\n" \
+	"		return;\n" \
+	"	}\n" \
+	"	float w = u_sign * texelFetch(u_link, int(texelFetch(u_obj, row).x)).x;\n" \
+	"	if (w == 0.0) return;\n" \
+	"	for (int c = 0; c < 3; c++) {\n" \
+	"		precise float v = texelFetch(u_out, row * u_ostride + c).x - texelFetch(u_base, id * 3 + c).x;\n" \
+	"		v = isnan(v) || isinf(v) ? 0.0 : v * w;\n" \
+	"		precise " DST " r = dst[id * 3 + c] + " DST "(v);\n" \
+	"		dst[id * 3 + c] = isnan(r) || isinf(r) ? " DST "(0.0) : r;\n" \
+	"	}\n" \
+	"}\n"
+
+static const char accumulate_src[] = ACCUMULATE_SRC("float");
+static const char accumulate_d_src[] = ACCUMULATE_SRC("double");
 
 /* Combine: colors = base + cache over ids [u_first, u_first + u_count). */
 static const char combine_src[] =
 	"#version 430 core\n"
 	"layout(local_size_x = 64) in;\n"
 	"layout(binding = 0) uniform samplerBuffer u_base;\n"
-	"layout(binding = 1) uniform samplerBuffer u_cache;\n"
+	"layout(std430, binding = 1) readonly buffer Cache { double cache[]; };\n"
 	"layout(std430, binding = 2) buffer Dst { float dst[]; };\n"
 	"uniform int u_count;\n"
 	"uniform int u_first;\n"
@@ -379,9 +382,24 @@ static const char combine_src[] =
 	"	if (i >= uint(u_count)) return;\n"
 	"	int k = (int(i) + u_first) * 3;\n"
 	"	for (int c = 0; c < 3; c++) {\n"
-	"		float v = texelFetch(u_base, k + c).x + texelFetch(u_cache, k + c).x;\n"
+	"		float v = float(double(texelFetch(u_base, k + c).x) + cache[k + c]);\n"
 	"		dst[k + c] = isnan(v) || isinf(v) ? 0.0 : v;\n"
 	"	}\n"
+	"}\n";
+
+/* Clear the light cache over ids [u_first, u_first + u_count). */
+static const char clear_src[] =
+	"#version 430 core\n"
+	"layout(local_size_x = 64) in;\n"
+	"layout(std430, binding = 0) buffer Dst { double dst[]; };\n"
+	"uniform int u_count;\n"
+	"uniform int u_first;\n"
+	"void main() {\n"
+	"	uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 64u;\n"
+	"	if (i >= uint(u_count)) return;\n"
+	"	int k = (int(i) + u_first) * 3;\n"
+	"	for (int c = 0; c < 3; c++)\n"
+	"		dst[k + c] = 0.0;\n"
 	"}\n";
 
 /* ------------------------------------------------------------------------ */
@@ -445,7 +463,7 @@ static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, 
 			if (!gpu_dispatch(s->ctx, k->prog, b, nb, ru->count))
 				return fail(s, "shading '%s' on the GPU failed", sf->name);
 			count_dispatch(s, ru->count);
-			struct gpu_program *a = s->accumulate;
+			struct gpu_program *a = dst == s->cache ? s->accumulate_d : s->accumulate;
 			gpu_uniform_int(a, "u_first", (int)ru->first);
 			gpu_uniform_int(a, "u_ostride", (int)ostride);
 			gpu_uniform_int(a, "u_id0", (int)sf->id0);
@@ -475,7 +493,7 @@ static bool combine(struct gpu_shot *s, int band)
 			const struct run *ru = &sf->runs[band].data[r];
 			gpu_uniform_int(s->combine, "u_first", (int)(sf->id0 + ru->first));
 			struct gpu_binding b[3] = {
-				{ 0, false, s->base }, { 1, false, s->cache }, { 2, true, s->colors },
+				{ 0, false, s->base }, { 1, true, s->cache }, { 2, true, s->colors },
 			};
 			if (!gpu_dispatch(s->ctx, s->combine, b, 3, ru->count))
 				return fail(s, "combining the light cache failed");
@@ -485,20 +503,16 @@ static bool combine(struct gpu_shot *s, int band)
 	return true;
 }
 
-/* Zero @buf over band @band's samples. */
-static bool clear_band(struct gpu_shot *s, struct gpu_buffer *buf, int band)
+/* Zero the light cache over band @band's samples. */
+static bool clear_band(struct gpu_shot *s, int band)
 {
-	/* combine with base = cache = zero buffer */
 	for (uint32_t si = 0; si < s->nsurfaces; si++) {
 		struct surface *sf = &s->surfaces[si];
 		for (size_t r = 0; r < sf->runs[band].len; r++) {
 			const struct run *ru = &sf->runs[band].data[r];
-			gpu_uniform_int(s->combine, "u_first", (int)(sf->id0 + ru->first));
-			struct gpu_binding b[3] = {
-				{ 0, false, s->zero }, { 1, false, s->zero }, { 2, true, buf },
-			};
-			/* the zero buffer is as long as the colour buffers */
-			if (!gpu_dispatch(s->ctx, s->combine, b, 3, ru->count))
+			gpu_uniform_int(s->clear, "u_first", (int)(sf->id0 + ru->first));
+			struct gpu_binding b[1] = { { 0, true, s->cache } };
+			if (!gpu_dispatch(s->ctx, s->clear, b, 1, ru->count))
 				return fail(s, "clearing the light cache failed");
 			count_dispatch(s, 0);
 		}
@@ -532,7 +546,7 @@ static bool run_shade(struct graph_node *n, void *user, bool *changed)
 		s->lights[i].cur.valid = true;
 	}
 	struct lstate *cached = s->cached[band];
-	bool rebuild = !s->base_valid[band] || s->subtractions[band] > MAX_SUBTRACTIONS;
+	bool rebuild = !s->base_valid[band];
 	/* a link change of a light in the cache: its old links are gone */
 	for (uint32_t i = 0; i < s->nlights && !rebuild; i++)
 		if (cached[i].valid && cached[i].link != s->lights[i].link_version)
@@ -543,11 +557,10 @@ static bool run_shade(struct graph_node *n, void *user, bool *changed)
 		s->base_valid[band] = true;
 	}
 	if (rebuild) {
-		if (!clear_band(s, s->cache, band))
+		if (!clear_band(s, band))
 			return false;
 		for (uint32_t i = 0; i < s->nlights; i++)
 			lstate_free(&cached[i]);
-		s->subtractions[band] = 0;
 	}
 	for (uint32_t i = 0; i < s->nlights; i++) {
 		struct light *L = &s->lights[i];
@@ -557,8 +570,6 @@ static bool run_shade(struct graph_node *n, void *user, bool *changed)
 			/* take the old contribution out */
 			if (c->on && !shade(s, L, c, band, -1.0f, s->cache))
 				return false;
-			if (c->on)
-				s->subtractions[band]++;
 			lstate_free(c);
 		}
 		if (want && !c->valid) {
@@ -1042,6 +1053,59 @@ static bool load_framebuffer(struct gpu_shot *s, const struct shot_file *f, cons
 	return ok;
 }
 
+/*
+ * Run every program once on one sample, so that the driver's just-in-time
+ * compilation (llvmpipe compiles at first use) happens at load, not on the
+ * first edit; then clear what that wrote.
+ */
+static bool warm_up(struct gpu_shot *s)
+{
+	for (uint32_t si = 0; si < s->nsurfaces; si++) {
+		struct surface *sf = &s->surfaces[si];
+		if (!sf->nrows)
+			continue;
+		for (uint32_t k = 0; k <= s->nlshaders; k++) {
+			struct kernel *kk = k < s->nlshaders ? &sf->lk[k] : &sf->base;
+			struct gpu_binding b[2 + 64];
+			uint32_t nb = 0;
+			b[nb++] = (struct gpu_binding){ 0, false, sf->records };
+			b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
+			if (!bind_shadows(s, kk, NULL, b, &nb))
+				return false;
+			gpu_uniform_int(kk->prog, "u_first", 0);
+			if (!gpu_dispatch(s->ctx, kk->prog, b, nb, 1))
+				return fail(s, "running the programs of '%s' failed", sf->name);
+		}
+	}
+	struct gpu_program *acc[2] = { s->accumulate, s->accumulate_d };
+	struct gpu_buffer *dst[2] = { s->colors, s->cache };
+	for (int i = 0; i < 2; i++) {
+		gpu_uniform_int(acc[i], "u_first", 0);
+		gpu_uniform_int(acc[i], "u_id0", 0);
+		gpu_uniform_int(acc[i], "u_ostride", 3);
+		gpu_uniform_int(acc[i], "u_mode", 1);
+		struct gpu_binding ab[5] = {
+			{ 0, false, s->zero }, { 1, false, s->zero }, { 2, false, s->zero },
+			{ 3, false, s->zero }, { 4, true, dst[i] },
+		};
+		if (!gpu_dispatch(s->ctx, acc[i], ab, 5, 1))
+			return fail(s, "running the runtime's programs failed");
+	}
+	gpu_uniform_int(s->combine, "u_first", 0);
+	gpu_uniform_int(s->clear, "u_first", 0);
+	struct gpu_binding cb[3] = { { 0, false, s->zero }, { 1, true, s->cache },
+				     { 2, true, s->colors } };
+	struct gpu_binding clb[1] = { { 0, true, s->cache } };
+	if (!gpu_dispatch(s->ctx, s->combine, cb, 3, 1) ||
+	    !gpu_dispatch(s->ctx, s->clear, clb, 1, (uint32_t)s->nsamples))
+		return fail(s, "running the runtime's programs failed");
+	for (int L = 0; L < NBANDS; L++)
+		if (!gpu_ifb_resolve(s->ifb, s->colors, s->nsamples, L, s->rgba[L]))
+			return fail(s, "running the resolve failed");
+	return gpu_encode_srgb8(s->ctx, s->rgba[0], s->width * s->height, s->px8) &&
+	       gpu_finish(s->ctx);
+}
+
 static void build_graph(struct gpu_shot *s)
 {
 	for (uint32_t i = 0; i < s->nlights; i++) {
@@ -1138,8 +1202,10 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 		ok = load_lights(s);
 	}
 	s->accumulate = ok ? gpu_program(ctx, accumulate_src, s->diag) : NULL;
+	s->accumulate_d = ok ? gpu_program(ctx, accumulate_d_src, s->diag) : NULL;
 	s->combine = ok ? gpu_program(ctx, combine_src, s->diag) : NULL;
-	if (ok && (!s->accumulate || !s->combine))
+	s->clear = ok ? gpu_program(ctx, clear_src, s->diag) : NULL;
+	if (ok && (!s->accumulate || !s->accumulate_d || !s->combine || !s->clear))
 		ok = fail(s, "the runtime's own GPU programs do not compile");
 	int nsf = cJSON_GetArraySize(sfs);
 	s->surfaces = rl_xcalloc((size_t)nsf + 1, sizeof(*s->surfaces));
@@ -1177,7 +1243,7 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	}
 	if (ok) {
 		float *zero = rl_xcalloc(cbytes / sizeof(float) + 1, sizeof(float));
-		ok = (s->base = buffer(s, cbytes, zero)) && (s->cache = buffer(s, cbytes, zero)) &&
+		ok = (s->base = buffer(s, cbytes, zero)) && (s->cache = buffer(s, 2 * cbytes, NULL)) &&
 		     (s->colors = buffer(s, cbytes, zero)) && (s->zero = buffer(s, cbytes, zero)) &&
 		     (s->scratch = buffer(s, sbytes, NULL));
 		free(zero);
@@ -1208,6 +1274,7 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 		s->cached[b] = rl_xcalloc(s->nlights + 1, sizeof(struct lstate));
 	if (ok)
 		build_graph(s);
+	ok = ok && warm_up(s);
 	shot_free(f);
 	if (!ok) {
 		gpu_shot_close(s);
