@@ -115,12 +115,36 @@ static double timed_run(struct bench *b, uint32_t n, uint32_t trips, float *chec
 	return t;
 }
 
+/*
+ * Scale a run of *n invocations and *trips trips that took @t ms to about
+ * @target ms: more trips up to MAX_STEPS, then more invocations; fewer
+ * invocations when even the given trips take too long.
+ */
+static void fit(uint32_t *n, uint32_t *trips, double t, double target)
+{
+	if (t < 1e-3)
+		t = 1e-3;
+	double scale = target / t;
+	double tr = (double)*trips * scale, m = *n;
+	if (tr < CAL_TRIPS) {
+		m *= tr / CAL_TRIPS;
+		tr = CAL_TRIPS;
+	}
+	if (tr > MAX_STEPS / UNROLL) {
+		m *= tr / (MAX_STEPS / UNROLL);
+		tr = MAX_STEPS / UNROLL;
+	}
+	m = m < MIN_INVOCATIONS ? MIN_INVOCATIONS : m > MAX_INVOCATIONS ? MAX_INVOCATIONS : m;
+	*n = (uint32_t)m / 64u * 64u;
+	*trips = (uint32_t)tr;
+}
+
 /* Measure one kernel into @k. */
 static bool measure(struct gpu_ctx *ctx, bool vec4, uint32_t runs, double target_ms,
 		    const struct gpu_arith_rate *r, struct gpu_arith_kernel *k)
 {
 	int chains = vec4 ? GPU_ARITH_VEC4_CHAINS : GPU_ARITH_SCALAR_CHAINS;
-	char src[4096];
+	char src[16384];
 	if (!kernel_source(src, sizeof(src), vec4, chains)) {
 		rl_log(RL_LOG_ERROR, "gpu_arith_rate: kernel source too long");
 		return false;
@@ -138,42 +162,30 @@ static bool measure(struct gpu_ctx *ctx, bool vec4, uint32_t runs, double target
 	if (!b.out)
 		return false;
 
-	/* Warm-up (the driver may compile on first use), then calibration. */
+	/*
+	 * Warm-up: the driver may compile on first use, and fresh memory is
+	 * slow to touch the first time.
+	 */
 	uint32_t n = BASE_INVOCATIONS, trips = CAL_TRIPS;
-	if (timed_run(&b, MIN_INVOCATIONS, 1, NULL, NULL) < 0)
+	if (timed_run(&b, n, 1, NULL, NULL) < 0)
 		goto out;
-	double t = timed_run(&b, n, trips, NULL, NULL);
-	if (t < 0)
-		goto out;
-	if (t < 1e-3)
-		t = 1e-3;
-	double scale = target_ms / t;
-	if (scale < 1.0) {
-		/* Too slow for this many invocations: fewer of them. */
-		double m = (double)n * scale;
-		n = m < MIN_INVOCATIONS ? MIN_INVOCATIONS : (uint32_t)m / 64u * 64u;
-	} else {
-		double tr = (double)trips * scale;
-		uint32_t max_trips = MAX_STEPS / UNROLL;
-		if (tr > max_trips) {
-			/* A fast device: more invocations once the steps are at their cap. */
-			double m = (double)n * tr / max_trips;
-			n = m > MAX_INVOCATIONS ? MAX_INVOCATIONS : (uint32_t)m / 64u * 64u;
-			tr = max_trips;
-		}
-		trips = (uint32_t)tr;
-	}
-	if (n > b.cap) {
-		gpu_buffer_destroy(b.out);
-		b.cap = n;
-		b.out = gpu_buffer_create(ctx, (size_t)b.cap * sizeof(float), NULL);
-		if (!b.out)
+	/* Two calibration runs: a short one, then one near the target. */
+	for (int cal = 0; cal < 2; cal++) {
+		double t = timed_run(&b, n, trips, NULL, NULL);
+		if (t < 0)
 			goto out;
+		fit(&n, &trips, t, target_ms);
+		if (n > b.cap) {
+			gpu_buffer_destroy(b.out);
+			b.cap = n;
+			b.out = gpu_buffer_create(ctx, (size_t)b.cap * sizeof(float), NULL);
+			if (!b.out || timed_run(&b, n, 1, NULL, NULL) < 0)
+				goto out;
+		}
 	}
-
 	double best = -1;
 	for (uint32_t i = 0; i < runs; i++) {
-		t = timed_run(&b, n, trips, i + 1 == runs ? k->check : NULL, r->check_index);
+		double t = timed_run(&b, n, trips, i + 1 == runs ? k->check : NULL, r->check_index);
 		if (t < 0)
 			goto out;
 		if (best < 0 || t < best)

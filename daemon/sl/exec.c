@@ -24,6 +24,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Float operations of a cone test (see in_cone()). */
+#define CONE_COST 20u
 /* Grids bigger than this are refused (register storage grows with them). */
 #define MAX_POINTS (1u << 24)
 /* Longest array register accepted. */
@@ -73,6 +75,7 @@ struct sl_exec_private {
 	float *regblock;        /* storage of all numeric registers */
 	const char **strblock;  /* storage of all string registers */
 	uint8_t *held;          /* per register: its value is the host's (sl_exec_hold) */
+	uint32_t *cost;         /* per instruction: float operations per active point (exec.h) */
 	bool running;
 	bool warned_noloc;
 };
@@ -757,6 +760,40 @@ static bool check_program(const struct sl_program *prog, uint32_t *loopcont, uin
 /* ------------------------------------------------------------------------ */
 /* Creation                                                                  */
 
+/*
+ * Float operations per active point of instruction @in (the table in
+ * exec.h), apart from what illuminance, illuminate and the lighting
+ * built-ins count while they run.
+ */
+static uint32_t insn_cost(const struct sl_program *prog, const struct sl_insn *in)
+{
+	int32_t d = in->dst;
+	switch ((enum sl_op)in->op) {
+	case SL_OP_NEG: case SL_OP_ADD: case SL_OP_SUB:
+		return (uint32_t)ncomp_of(prog, d);
+	case SL_OP_MUL: case SL_OP_DIV:
+		if (ncomp_of(prog, in->args[0]) == 16 && ncomp_of(prog, in->args[1]) == 16)
+			return in->op == SL_OP_MUL ? 112 : 256;
+		return (uint32_t)ncomp_of(prog, d);
+	case SL_OP_LT: case SL_OP_LE: case SL_OP_GT: case SL_OP_GE:
+		return 1;
+	case SL_OP_EQ: case SL_OP_NE: {
+		if (is_str(prog, in->args[0]))
+			return 0;
+		int na = ncomp_of(prog, in->args[0]), nb = ncomp_of(prog, in->args[1]);
+		return (uint32_t)(na > nb ? na : nb);
+	}
+	case SL_OP_DOT:
+		return 5;
+	case SL_OP_CROSS:
+		return 9;
+	case SL_OP_CALL:
+		return sl_exec_builtin_cost(prog, in);
+	default:
+		return 0;
+	}
+}
+
 struct sl_exec *sl_exec_create(const struct sl_program *prog, uint32_t maxpoints)
 {
 	if (!prog || maxpoints == 0 || maxpoints > MAX_POINTS)
@@ -835,6 +872,9 @@ struct sl_exec *sl_exec_create(const struct sl_program *prog, uint32_t maxpoints
 	p->pvals = rl_xcalloc(prog->nparams + 1, sizeof(struct pval));
 	p->held = rl_xcalloc(prog->nregs + 1, 1);
 	p->iters = rl_xcalloc(prog->ncode + 1, sizeof(uint32_t));
+	p->cost = rl_xcalloc(prog->ncode + 1, sizeof(uint32_t));
+	for (uint32_t i = 0; i < prog->ncode; i++)
+		p->cost[i] = insn_cost(prog, &prog->code[i]);
 
 	p->maxframes = maxdepth;
 	p->frames = rl_xcalloc(maxdepth + 1, sizeof(struct frame));
@@ -876,6 +916,7 @@ void sl_exec_destroy(struct sl_exec *x)
 		free(p->maskpool);
 		free(p->loopcont);
 		free(p->iters);
+		free(p->cost);
 		for (size_t i = 0; i < p->noldscratch; i++)
 			free(p->oldscratch[i]);
 		free(p->oldscratch);
@@ -1971,6 +2012,7 @@ static uint32_t next_light(struct sl_exec *x, struct frame *f, uint32_t base, ui
 		store_triple(x, prog->global_reg[SL_GLOBAL_CL], r.Cl);
 		store_triple(x, prog->global_reg[SL_GLOBAL_OL], r.Ol);
 		const float *ax = f->buf + 3 * s, *ang = f->buf + 6 * s;
+		uint32_t tested = 0;
 		for (uint32_t i = 0; i < n; i++) {
 			if (!x->mask[i])
 				continue;
@@ -1979,9 +2021,11 @@ static uint32_t next_light(struct sl_exec *x, struct frame *f, uint32_t base, ui
 				float Lv[3] = { r.L[i], r.L[s + i], r.L[2 * s + i] };
 				float av[3] = { ax[i], ax[s + i], ax[2 * s + i] };
 				on = in_cone(Lv, av, ang[i]);
+				tested++;
 			}
 			x->mask[i] = on;
 		}
+		sl_exec_add_ops(x, CONE_COST, tested);
 		recount(x);
 		if (!x->nactive)
 			continue;
@@ -2038,6 +2082,7 @@ static uint32_t op_emit(struct sl_exec *x, const struct sl_insn *in, uint32_t pc
 	int32_t axr = solar ? in->args[0] : cone ? in->args[1] : -1;
 	int32_t angr = cone ? in->args[2] : -1;
 	/* Each point's L, its cone test, then L is stored (uniform L: first point's). */
+	sl_exec_add_ops(x, (solar ? 0u : 3u) + (cone ? CONE_COST : 0u), x->nactive);
 	uint32_t first = first_lane(x);
 	for (uint32_t i = 0; i < x->n; i++) {
 		if (!x->mask[i])
@@ -2105,6 +2150,8 @@ static void run_range(struct sl_exec *x, uint32_t pc, uint32_t end)
 		/* Work done, for benchmarks: points written by this instruction. */
 		if (in->dst >= 0)
 			x->ops += prog->regs[in->dst].varying ? x->nactive : 1;
+		if (x->count_flops)
+			x->flops += (uint64_t)p->cost[pc] * x->nactive;
 		switch ((enum sl_op)in->op) {
 		case SL_OP_NOP:
 			pc++;
@@ -2489,6 +2536,20 @@ bool sl_exec_space(struct sl_exec *x, const struct sl_insn *in, const char *name
 		return true;
 	sl_exec_warn_once(x, in, "unknown coordinate system '%s' (identity used)", name);
 	return false;
+}
+
+void sl_exec_count_ops(struct sl_exec *x, bool on)
+{
+	if (!x)
+		return;
+	if (on)
+		x->flops = 0;
+	x->count_flops = on;
+}
+
+uint64_t sl_exec_ops(const struct sl_exec *x)
+{
+	return x ? x->flops : 0;
 }
 
 uint64_t sl_exec_op_count(const struct sl_exec *x)

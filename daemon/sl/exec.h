@@ -202,11 +202,71 @@ void sl_exec_set_peer(struct sl_exec *x, enum sl_peer which, struct sl_exec *pee
 bool sl_exec_run(struct sl_exec *x, const struct sl_host *host);
 
 /**
- * Operations executed by all runs so far: each executed instruction that
+ * Instructions executed by all runs so far: each executed instruction that
  * writes a result counts one per active point when the result is varying, one
- * when it is uniform (a benchmark's unit of work).
+ * when it is uniform (the interpreter's unit of work; for float operations
+ * see sl_exec_count_ops()).
  */
 uint64_t sl_exec_op_count(const struct sl_exec *x);
+
+/**
+ * Count the float arithmetic that runs execute (@on), or stop counting. Turning
+ * it on sets the total to 0; turning it off keeps the total for
+ * sl_exec_ops(). A run with counting off costs one branch per instruction.
+ *
+ * What counts. Each executed instruction adds its cost below once for every
+ * point active when it runs, whether its result is varying or uniform (a
+ * kernel that shades one sample per invocation does the uniform arithmetic
+ * for each sample); code skipped because no point is active adds nothing,
+ * and a loop adds its body's cost on each trip. The unit is one float
+ * operation per component; a transcendental or a square root counts 1, like
+ * an add, which is the conservative choice when the count is set against a
+ * multiply-add rate (where a multiply-add counts 2).
+ *
+ *   copies, moves, loads, component and array access, triple / matrix
+ *   construction, select, not / and / or, control flow           0
+ *   neg, add, sub, mul, div                     1 per result component
+ *   matrix * matrix 112 (64 mul + 48 add); matrix / matrix 256 (a 144-op
+ *   inverse and a product)
+ *   lt le gt ge 1; eq ne 1 per compared component (strings 0)
+ *   dot 5 (3 mul + 2 add); cross 9 (6 mul + 3 sub)
+ *   illuminance with axis and angle: 20 per point and visited light that
+ *   reaches the cone test (three dots, mul, sqrt, div, cos, compare)
+ *   illuminate: 3 (L = Ps - P), + 20 with a cone; solar 0 (L is its axis)
+ *
+ *   Built-ins, per point, nc = components of the result:
+ *   radians degrees 1; sin cos tan asin acos atan sinh cosh tanh exp sqrt
+ *   inversesqrt pow log abs sign floor ceil round step 1 per nc;
+ *   log(x, base) 3; mod 4 per nc (div, floor, mul, sub); min max
+ *   (arguments - 1) per nc; clamp 2 per nc; mix 3 per nc; smoothstep 9;
+ *   filterstep 19 (14 with two edges s1, s2); spline 29 + 7 per nc (one
+ *   evaluation, whatever the basis); noise / pnoise of 1, 2, 3, 4 dimensions
+ *   27, 52, 85, 182 per nc; cellnoise dimensions + 1 per nc; random 0
+ *   (integer hashing); length 6; normalize 9; distance 9; ptlined 31;
+ *   faceforward 9; reflect 12; refract 24; fresnel 52, 88 with R and T;
+ *   specularbrdf 20; rotate 63 (a point) or 151 (a matrix); area 33;
+ *   calculatenormal 21; Du Dv 2 per nc; Deriv 4 + 7 per nc; transform of a
+ *   point 27, of a vector or normal 15 (space matrices are the host's and
+ *   count 0); depth 30; ctransform 9 per conversion to or from a space
+ *   other than "rgb"; determinant 63; translate scale spacematrix 112;
+ *   xcomp setxcomp comp setcomp 0; texture environment shadow 0 (filtering
+ *   is memory work done by the host); queries, message passing, strings 0.
+ *   ambient 3 per point and ambient light; diffuse, specular, phong per
+ *   point lit by a light (not __nondiffuse / __nonspecular): 24 to
+ *   normalize L and N and test the hemisphere, then, where the point faces
+ *   the light, 6 for diffuse, 26 for specular (specularbrdf + 6), 37 for
+ *   phong.
+ *
+ * Lights. A surface's lights run on their own executors (sl_lighthost), and
+ * their arithmetic is counted there: turn counting on for the surface and
+ * for every light executor, and add sl_exec_ops() of all of them. A light
+ * runs over the surface's whole grid once for each illuminance loop or
+ * lighting built-in that visits it, and counts each of those runs.
+ */
+void sl_exec_count_ops(struct sl_exec *x, bool on);
+
+/** Float operations counted since sl_exec_count_ops() last turned counting on (0 if never). */
+uint64_t sl_exec_ops(const struct sl_exec *x);
 
 /** After a light shader's run: lit[i] is 1 where an illuminate/solar body ran for point i. */
 const uint8_t *sl_exec_lit_mask(const struct sl_exec *x);

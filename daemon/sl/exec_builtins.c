@@ -917,6 +917,9 @@ static bool light_flag(struct sl_exec *x, int light, const char *name, float *fl
 				x->stride);
 }
 
+/* Float operations to normalize L and N and test the hemisphere (exec.h). */
+#define LIGHT_TEST_COST 24u
+
 /* ambient(), diffuse(N), specular(N, V, roughness), phong(N, V, size) */
 static void do_lighting(struct sl_exec *x, const struct sl_insn *in, int id)
 {
@@ -948,16 +951,19 @@ static void do_lighting(struct sl_exec *x, const struct sl_insn *in, int id)
 				if (x->mask[i])
 					for (int c = 0; c < 3; c++)
 						acc[c * s + i] += res.Cl[c * s + i];
+			sl_exec_add_ops(x, 3, x->nactive);
 			continue;
 		}
 		if (res.ambient)
 			continue;
 		bool fvary, has_flag = light_flag(x, li, skip, flag, sflag, &fvary);
+		uint32_t tested = 0, facing = 0;
 		for (uint32_t i = 0; i < n; i++) {
 			if (!x->mask[i] || !res.lit[i])
 				continue;
 			if (has_flag && (fvary ? flag[i] : flag[0]) > 0.5f)
 				continue;
+			tested++;
 			float L[3] = { res.L[i], res.L[s + i], res.L[2 * s + i] };
 			float Ln[3], N[3], Nn[3];
 			sl_v3_normalize(Ln, L);
@@ -967,6 +973,7 @@ static void do_lighting(struct sl_exec *x, const struct sl_insn *in, int id)
 			float cosl = sl_v3_dot(Ln, Nn);
 			if (cosl < 0.0f)
 				continue;
+			facing++;
 			float k;
 			if (id == SL_BI_DIFFUSE) {
 				k = cosl;
@@ -988,6 +995,8 @@ static void do_lighting(struct sl_exec *x, const struct sl_insn *in, int id)
 			for (int c = 0; c < 3; c++)
 				acc[c * s + i] = sl_finite(acc[c * s + i] + res.Cl[c * s + i] * k);
 		}
+		sl_exec_add_ops(x, LIGHT_TEST_COST, tested);
+		sl_exec_add_ops(x, id == SL_BI_DIFFUSE ? 6 : id == SL_BI_SPECULAR ? 26 : 37, facing);
 	}
 	uint32_t i0 = first_active(x);
 	SL_X_EACH(x, d, i) {
@@ -1640,5 +1649,119 @@ void sl_exec_builtin(struct sl_exec *x, const struct sl_insn *in)
 	default:
 		sl_exec_fail(x, in, "built-in '%s' is not implemented", sl_builtins[in->bi].name);
 		break;
+	}
+}
+
+/* ------------------------------------------------------------------------ */
+/* Float operation counts (the table in exec.h)                              */
+
+/*
+ * Per output component of noise() of 1 to 4 dimensions: lattice and
+ * fraction (2 per dimension), fade (7 per dimension), per corner the
+ * offsets (1 per dimension) and the gradient's dot (4, 3, 1, 2 by
+ * dimension), the blends (3 each) and the final scale and clamp (5).
+ */
+static const uint16_t noise_cost[5] = { 0, 27, 52, 85, 182 };
+
+/* Is register @r the constant string "rgb"? */
+static bool is_const_rgb(const struct sl_program *prog, int32_t r)
+{
+	const struct sl_reg *g = &prog->regs[r];
+	return g->kind == SL_REG_CONST && g->type == SL_TYPE_STRING &&
+	       prog->strings[g->cindex] && !strcmp(prog->strings[g->cindex], "rgb");
+}
+
+uint32_t sl_exec_builtin_cost(const struct sl_program *prog, const struct sl_insn *in)
+{
+	if (in->bi < 0 || (uint32_t)in->bi >= sl_nbuiltins)
+		return 0;
+	const int32_t *a = in->args;
+	int na = in->nargs;
+	uint32_t nc = in->dst >= 0 ? (uint32_t)sl_reg_ncomp(&prog->regs[in->dst]) : 0;
+	switch ((enum sl_bi)sl_builtins[in->bi].id) {
+	case SL_BI_RADIANS: case SL_BI_DEGREES: case SL_BI_STEP:
+		return 1;
+	case SL_BI_SIN: case SL_BI_ASIN: case SL_BI_COS: case SL_BI_ACOS: case SL_BI_TAN:
+	case SL_BI_ATAN: case SL_BI_SINH: case SL_BI_COSH: case SL_BI_TANH: case SL_BI_POW:
+	case SL_BI_EXP: case SL_BI_SQRT: case SL_BI_INVERSESQRT: case SL_BI_ABS: case SL_BI_SIGN:
+	case SL_BI_FLOOR: case SL_BI_CEIL: case SL_BI_ROUND:
+		return nc;
+	case SL_BI_LOG:
+		return na >= 2 ? 3 : nc;
+	case SL_BI_MOD:
+		return 4 * nc;
+	case SL_BI_MIN: case SL_BI_MAX:
+		return na > 1 ? (uint32_t)(na - 1) * nc : 0;
+	case SL_BI_CLAMP:
+		return 2 * nc;
+	case SL_BI_MIX:
+		return 3 * nc;
+	case SL_BI_SMOOTHSTEP:
+		return 9;
+	case SL_BI_FILTERSTEP: {
+		int nnum = 0;
+		while (nnum < na && prog->regs[a[nnum]].type != SL_TYPE_STRING)
+			nnum++;
+		return nnum >= 3 ? 14 : 19;
+	}
+	case SL_BI_SPLINE:
+		return 29 + 7 * nc;
+	case SL_BI_NOISE: case SL_BI_PNOISE: case SL_BI_CELLNOISE: {
+		int total = 0;
+		for (int k = 0; k < na; k++)
+			total += sl_reg_ncomp(&prog->regs[a[k]]);
+		int dim = sl_builtins[in->bi].id == SL_BI_PNOISE ? total / 2 : total;
+		if (dim < 1 || dim > 4)
+			return 0;
+		if (sl_builtins[in->bi].id == SL_BI_CELLNOISE)
+			return (uint32_t)(dim + 1) * nc;
+		return noise_cost[dim] * nc;
+	}
+	case SL_BI_LENGTH:
+		return 6;
+	case SL_BI_NORMALIZE: case SL_BI_DISTANCE: case SL_BI_FACEFORWARD:
+		return 9;
+	case SL_BI_PTLINED:
+		return 31;
+	case SL_BI_ROTATE:
+		return na >= 1 && sl_reg_ncomp(&prog->regs[a[0]]) == 16 ? 151 : 63;
+	case SL_BI_REFLECT:
+		return 12;
+	case SL_BI_REFRACT:
+		return 24;
+	case SL_BI_FRESNEL:
+		return na >= 7 ? 88 : 52;
+	case SL_BI_SPECULARBRDF:
+		return 20;
+	case SL_BI_AREA:
+		return 33;
+	case SL_BI_CALCULATENORMAL:
+		return 21;
+	case SL_BI_DU: case SL_BI_DV:
+		return 2 * nc;
+	case SL_BI_DERIV:
+		return 4 + 7 * nc;
+	case SL_BI_TRANSFORM:
+		if (na >= 1 && prog->regs[a[na > 3 ? 2 : na - 1]].type == SL_TYPE_POINT)
+			return 27;
+		return 15;
+	case SL_BI_VTRANSFORM: case SL_BI_NTRANSFORM:
+		return 15;
+	case SL_BI_DEPTH:
+		return 30;
+	case SL_BI_CTRANSFORM: {
+		if (na < 2)
+			return 0;
+		uint32_t c = is_const_rgb(prog, a[na >= 3 ? 1 : 0]) ? 0 : 9;
+		if (na >= 3 && !is_const_rgb(prog, a[0]))
+			c += 9;
+		return c;
+	}
+	case SL_BI_DETERMINANT:
+		return 63;
+	case SL_BI_TRANSLATE: case SL_BI_SCALE: case SL_BI_SPACEMATRIX:
+		return 112;
+	default:
+		return 0;
 	}
 }

@@ -39,6 +39,8 @@ struct sl_exec {
 	bool failed;            /* a run-time error stopped the run */
 	uint32_t random_calls;  /* random() calls so far in this run */
 	uint64_t ops;           /* operations executed (see sl_exec_op_count) */
+	bool count_flops;       /* float operations are being counted (sl_exec_count_ops) */
+	uint64_t flops;         /* float operations counted (sl_exec_ops) */
 	uint8_t *warned;        /* per instruction: a warning was printed already */
 
 	/* Scratch floats, reset before each instruction (sl_exec_scratch). */
@@ -187,6 +189,24 @@ const char *sl_exec_light_category(struct sl_exec *x, int i);
  * "a,b", "" for all) select a light whose __category is @light_cat?
  */
 bool sl_category_match(const char *cat, const char *light_cat);
+
+/**
+ * With counting on (sl_exec_count_ops), add @per_point float operations for
+ * each of @points points: for work whose amount is known only while running
+ * (per light, per point reaching a test).
+ */
+static inline void sl_exec_add_ops(struct sl_exec *x, uint32_t per_point, uint32_t points)
+{
+	if (x->count_flops)
+		x->flops += (uint64_t)per_point * points;
+}
+
+/**
+ * Float operations per active point of built-in call @in, as tabled in
+ * exec.h, except the per-light work of the lighting built-ins, which
+ * sl_exec_builtin() adds itself. Implemented in exec_builtins.c.
+ */
+uint32_t sl_exec_builtin_cost(const struct sl_program *prog, const struct sl_insn *in);
 
 /** Run built-in call @in (SL_OP_CALL). Implemented in exec_builtins.c. */
 void sl_exec_builtin(struct sl_exec *x, const struct sl_insn *in);

@@ -2424,6 +2424,131 @@ out:
 	sl_program_destroy(lp);
 }
 
+/* ------------------------------------------------------------------------ */
+/* Counting float operations                                                 */
+
+static const char countsurf_src[] =
+	"surface t(float a = 1)\n"
+	"{\n"
+	"	if (s < 0.5)\n"
+	"		Ci = color(a * 2 + 1);\n"
+	"}\n";
+
+static const char countlight_src[] =
+	"light pl(float intensity = 1)\n"
+	"{\n"
+	"	illuminate(point(0, 0, 5)) {\n"
+	"		Cl = intensity * color(1, 1, 1);\n"
+	"	}\n"
+	"}\n";
+
+static const char countdiff_src[] =
+	"surface d()\n"
+	"{\n"
+	"	Ci = diffuse(N);\n"
+	"}\n";
+
+/*
+ * Exact counts (exec.h's table) over a 8 x 4 grid: the comparison runs on
+ * all 32 points, the multiply and add only on the 16 with s < 0.5, the
+ * copies into Ci count nothing. Counting off leaves the total alone; never
+ * turned on, it is 0. A surface's diffuse() counts its own lighting
+ * arithmetic, and the light's executor its illuminate and body.
+ */
+static void test_count_ops(void)
+{
+	enum { NU = 8, NV = 4, N = NU * NV };
+	struct sl_program *prog = sl_compile_string("count.sl", countsurf_src,
+						    strlen(countsurf_src), NULL);
+	CHECK(prog != NULL);
+	struct sl_exec *x = prog ? sl_exec_create(prog, N) : NULL;
+	CHECK(x != NULL);
+	if (!x) {
+		sl_program_destroy(prog);
+		return;
+	}
+	CHECK(sl_exec_set_grid(x, NU, NV));
+	float sv[N];
+	for (uint32_t i = 0; i < N; i++)
+		sv[i] = (float)(i % NU) / (NU - 1);   /* 4 of each row's 8 below 0.5 */
+	set_global1(x, SL_GLOBAL_S, sv);
+
+	CHECK(sl_exec_run(x, NULL));
+	CHECK(sl_exec_ops(x) == 0);              /* never turned on */
+	const uint64_t per_run = N + 2 * (N / 2);
+	sl_exec_count_ops(x, true);
+	CHECK(sl_exec_ops(x) == 0);
+	CHECK(sl_exec_run(x, NULL));
+	CHECK(sl_exec_ops(x) == per_run);
+	if (sl_exec_ops(x) != per_run) {
+		printf("counted %llu, expected %llu, in:\n", (unsigned long long)sl_exec_ops(x),
+		       (unsigned long long)per_run);
+		sl_ir_dump(prog, stdout);
+	}
+	bool vary;
+	const float *ci = sl_exec_global(x, SL_GLOBAL_CI, &vary);
+	CHECK(ci && vary && ci[0] == 3.0f && ci[NU - 1] == 0.0f);
+	/* a parameter changes values, not the count; runs add up */
+	float a = 5.0f;
+	CHECK(sl_exec_set_param(x, "a", &a, 1));
+	CHECK(sl_exec_run(x, NULL));
+	CHECK(sl_exec_ops(x) == 2 * per_run);
+	/* off: the total stays, runs add nothing */
+	sl_exec_count_ops(x, false);
+	CHECK(sl_exec_run(x, NULL));
+	CHECK(sl_exec_ops(x) == 2 * per_run);
+	/* on again: from 0 */
+	sl_exec_count_ops(x, true);
+	CHECK(sl_exec_ops(x) == 0);
+	/* all points take the branch: 32 compares, 64 for the multiply-add */
+	for (uint32_t i = 0; i < N; i++)
+		sv[i] = 0.25f;
+	set_global1(x, SL_GLOBAL_S, sv);
+	CHECK(sl_exec_run(x, NULL));
+	CHECK(sl_exec_ops(x) == (uint64_t)N + 2 * N);
+	sl_exec_destroy(x);
+	sl_program_destroy(prog);
+
+	/* Lights: each executor counts its own work, the caller adds them. */
+	struct sl_program *lp = sl_compile_string("pl.sl", countlight_src,
+						  strlen(countlight_src), NULL);
+	struct sl_program *sp = sl_compile_string("d.sl", countdiff_src,
+						  strlen(countdiff_src), NULL);
+	CHECK(lp && sp);
+	struct sl_exec *sx = sp ? sl_exec_create(sp, N) : NULL;
+	struct sl_exec *lx = lp ? sl_exec_create(lp, N) : NULL;
+	CHECK(sx && lx);
+	if (sx && lx) {
+		CHECK(sl_exec_set_grid(sx, NU, NV));
+		/* a patch at z = 0 facing the light at z = 5 */
+		for (uint32_t i = 0; i < N; i++) {
+			set_global3(sx, SL_GLOBAL_P, i, (float)(i % NU) * 0.1f,
+				    (float)(i / NU) * 0.1f, 0.0f);
+			set_global3(sx, SL_GLOBAL_N, i, 0.0f, 0.0f, 1.0f);
+		}
+		struct sl_lighthost lh;
+		sl_lighthost_init(&lh, &lx, 1);
+		sl_exec_count_ops(sx, true);
+		sl_exec_count_ops(lx, true);
+		CHECK(sl_exec_run(sx, &lh.host));
+		/* diffuse: 24 to normalize and test, 6 to add the light's colour */
+		CHECK(sl_exec_ops(sx) == 30u * N);
+		/* illuminate: L = Ps - P, 3; the body's colour multiply, 3 */
+		CHECK(sl_exec_ops(lx) == 6u * N);
+		if (sl_exec_ops(lx) != 6u * N) {
+			printf("light counted %llu, expected %u, in:\n",
+			       (unsigned long long)sl_exec_ops(lx), 6u * N);
+			sl_ir_dump(lp, stdout);
+		}
+		const float *dc = sl_exec_global(sx, SL_GLOBAL_CI, &vary);
+		CHECK(dc && dc[0] > 0.9f && dc[0] <= 1.0f);
+	}
+	sl_exec_destroy(sx);
+	sl_exec_destroy(lx);
+	sl_program_destroy(sp);
+	sl_program_destroy(lp);
+}
+
 int main(void)
 {
 	RUN(test_arith);
@@ -2447,5 +2572,6 @@ int main(void)
 	RUN(test_stencil_deriv);
 	RUN(test_stencil_errors);
 	RUN(test_stencil_lights);
+	RUN(test_count_ops);
 	return test_finish();
 }

@@ -2,9 +2,12 @@
  * The GPU module on whatever EGL finds (llvmpipe without a GPU): compute
  * dispatch in 1D and 2D with exact results, uniforms of each kind, compile
  * errors with numbered source, the program cache, buffer ranges, offline
- * validation, and timings (printed, not checked). Skips (77) without EGL.
+ * validation, timings (printed, not checked) and the arithmetic
+ * micro-benchmark, whose results are checked against the CPU. Skips (77)
+ * without EGL.
  */
 #include "gpu.h"
+#include "microbench.h"
 #include "test.h"
 
 #include <stdint.h>
@@ -656,6 +659,86 @@ static void test_create_failures(void)
 	}
 }
 
+/*
+ * The micro-benchmark's result of invocation @i as microbench.h defines it,
+ * evaluated on the CPU, with @steps steps of each chain.
+ */
+static double arith_expected(const struct gpu_arith_rate *r, bool vec4, uint32_t i,
+			     uint32_t steps)
+{
+	float f = r->seed + (float)(i & 1023u) * 0.0009765625f;
+	int chains = vec4 ? GPU_ARITH_VEC4_CHAINS : GPU_ARITH_SCALAR_CHAINS;
+	int width = vec4 ? 4 : 1;
+	float s[4] = { 0, 0, 0, 0 };
+	for (int k = 0; k < chains; k++) {
+		for (int j = 0; j < width; j++) {
+			float x = f + (float)(width * k + j) * 0.0078125f;
+			for (uint32_t n = 0; n < steps; n++)
+				x = fmaf(x, r->mul[j], r->add[j]);
+			s[j] += x;
+		}
+	}
+	return vec4 ? (double)((s[0] + s[1]) + (s[2] + s[3])) : (double)s[0];
+}
+
+static void check_arith_kernel(const struct gpu_arith_rate *r, const struct gpu_arith_kernel *k,
+			       bool vec4)
+{
+	CHECK(k->flops > 0 && isfinite(k->flops));
+	CHECK(k->ms > 0 && isfinite(k->ms));
+	CHECK(k->invocations >= 1024 && k->invocations % 64 == 0);
+	CHECK(k->steps >= 32 && k->steps <= (1u << 20));
+	/* The rate is the work over the best time. */
+	double work = 2.0 * (vec4 ? 4 * GPU_ARITH_VEC4_CHAINS : GPU_ARITH_SCALAR_CHAINS) *
+		      (double)k->steps * (double)k->invocations;
+	CHECK_NEAR(k->flops * k->ms * 1e-3 / work, 1.0, 1e-9);
+	int terms = vec4 ? 4 * GPU_ARITH_VEC4_CHAINS : GPU_ARITH_SCALAR_CHAINS;
+	for (int c = 0; c < GPU_ARITH_CHECKS; c++) {
+		uint32_t i = r->check_index[c];
+		if (i >= k->invocations)
+			continue;
+		double want = arith_expected(r, vec4, i, k->steps);
+		/*
+		 * The chains are exact in float; only the final sum rounds. Each
+		 * addition of positive terms is off by at most 2^-24 of its
+		 * partial sum, itself at most the total, in whatever order.
+		 */
+		double tol = (terms - 1) * ldexp(fabs(want), -24);
+		CHECK_NEAR(k->check[c], want, tol);
+		/* Half the steps would have been caught: the check can fail. */
+		CHECK(fabs(arith_expected(r, vec4, i, k->steps / 2) - want) > 2 * tol);
+	}
+	/* Results depend on the invocation. */
+	CHECK(k->check[0] != k->check[1]);
+}
+
+static void test_arith_rate(void)
+{
+	struct gpu_arith_rate r;
+	double t0 = now_ms();
+	bool ok = gpu_arith_rate(ctx, 3, 20.0, &r);
+	double wall = now_ms() - t0;
+	CHECK(ok);
+	if (!ok)
+		return;
+	CHECK(r.runs == 3);
+	check_arith_kernel(&r, &r.vec4, true);
+	check_arith_kernel(&r, &r.scalar, false);
+	CHECK(r.flops == (r.vec4.flops >= r.scalar.flops ? r.vec4.flops : r.scalar.flops));
+	CHECK(r.ms == (r.vec4.flops >= r.scalar.flops ? r.vec4.ms : r.scalar.ms));
+	/* About the asked-for time per run (printed; timing is not checked). */
+	printf("arithmetic rate: vec4 %.1f GFLOP/s (%.1f ms, %llu invocations x %u steps), "
+	       "scalar %.1f GFLOP/s (%.1f ms, %llu x %u); whole call %.0f ms\n",
+	       r.vec4.flops * 1e-9, r.vec4.ms, (unsigned long long)r.vec4.invocations,
+	       r.vec4.steps, r.scalar.flops * 1e-9, r.scalar.ms,
+	       (unsigned long long)r.scalar.invocations, r.scalar.steps, wall);
+
+	struct gpu_arith_rate z;
+	CHECK(!gpu_arith_rate(NULL, 1, 5.0, &z));
+	CHECK(z.flops == 0 && z.vec4.invocations == 0);
+	CHECK(!gpu_arith_rate(ctx, 1, 5.0, NULL));
+}
+
 int main(void)
 {
 	setvbuf(stdout, NULL, _IONBF, 0);
@@ -683,6 +766,7 @@ int main(void)
 	RUN(test_dispatch_errors);
 	RUN(test_overhead);
 	RUN(test_validate);
+	RUN(test_arith_rate);
 
 	gpu_destroy(ctx);
 	gpu_destroy(NULL);

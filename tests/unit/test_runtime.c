@@ -1,0 +1,342 @@
+/*
+ * The GPU runtime against the CPU resolver and against itself, on a small
+ * scene baked here (argv[1] is the relight command) with the hard cases of
+ * shading in it: a point light lying on the ground plane, a distant light
+ * grazing it, roughness near 0, and a polygon whose normals are all zero.
+ *
+ *  - every level is finite and the final level matches resolve_cpu within
+ *    1e-4 relative (|gpu - cpu| / max(|gpu|, |cpu|, 1e-3), as relight diff);
+ *  - 100,000 random edits of one light (intensities 1e-4 to 1e4, colours,
+ *    positions), each folded into the light cache and rendered, then its
+ *    parameters restored: the final image within 1e-4 relative of the one
+ *    before (the cache is summed in double: exact, so the bound holds with
+ *    room to spare);
+ *  - NaN, infinite and out-of-range values are refused and change nothing;
+ *  - mute, solo and light linking against the CPU resolver with the light's
+ *    intensity at 0;
+ *  - the graph reruns nothing when nothing changed, and an edit of an
+ *    unfrozen light shades each sample of the level once.
+ *
+ * Skips (exit 77) without an EGL context.
+ */
+#include "gpu.h"
+#include "graph.h"
+#include "bake/resolve.h"
+#include "runtime.h"
+#include "test.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#define REL_TOL 1e-4
+#define NEDITS 100000
+
+static const char scene[] =
+	"Format 64 48 1\n"
+	"PixelSamples 2 2\n"
+	"Projection \"perspective\" \"fov\" 45\n"
+	"Display \"hard.exr\" \"file\" \"rgba\"\n"
+	"Translate 0 -0.6 4\n"
+	"Rotate -15 1 0 0\n"
+	"WorldBegin\n"
+	"  LightSource \"ambientlight\" 1 \"intensity\" 0.05\n"
+	"  LightSource \"pointlight\" 2 \"intensity\" 1.5 \"from\" [0.4 0 0.5]\n"
+	"  LightSource \"spotlight\" 3 \"intensity\" 12 \"from\" [1 3 -1] \"to\" [0 0 0.5]"
+	" \"coneangle\" 0.5 \"conedeltaangle\" 0.1\n"
+	"  LightSource \"distantlight\" 4 \"intensity\" 0.8 \"from\" [0 0 0] \"to\" [1 0 0]\n"
+	"  AttributeBegin\n"
+	"    Surface \"plastic\" \"roughness\" 1e-6 \"Ks\" 0.8\n"
+	"    Polygon \"P\" [-3 0 -2  -3 0 4  3 0 4  3 0 -2]\n"
+	"  AttributeEnd\n"
+	"  AttributeBegin\n"
+	"    Surface \"metal\" \"roughness\" 0.0001\n"
+	"    Translate -0.6 0.45 0.8\n"
+	"    Sphere 0.45 -0.45 0.45 360\n"
+	"  AttributeEnd\n"
+	"  AttributeBegin\n"
+	"    Surface \"plastic\"\n"
+	"    Polygon \"P\" [0.3 0.1 0  0.9 0.1 0  0.9 0.6 0  0.3 0.6 0]"
+	" \"N\" [0 0 0  0 0 0  0 0 0  0 0 0]\n"
+	"  AttributeEnd\n"
+	"WorldEnd\n";
+
+static struct gpu_ctx *ctx;
+static struct gpu_shot *shot;
+static char shot_path[512];
+static uint32_t W, H;
+
+static double max_rel(const float *a, const float *b, size_t n, size_t *at)
+{
+	double m = 0.0;
+	for (size_t i = 0; i < n; i++) {
+		if (i % 4 == 3)
+			continue;
+		double d = fabs((double)a[i] - (double)b[i]);
+		double s = fmax(fmax(fabs((double)a[i]), fabs((double)b[i])), 1e-3);
+		if (!(d / s <= m)) {
+			m = isfinite(d / s) ? d / s : INFINITY;
+			if (at)
+				*at = i;
+		}
+	}
+	return m;
+}
+
+static bool all_finite(const float *a, size_t n)
+{
+	for (size_t i = 0; i < n; i++)
+		if (!isfinite(a[i]))
+			return false;
+	return true;
+}
+
+static float *gpu_image(int level)
+{
+	float *img = calloc((size_t)W * H * 4, sizeof(float));
+	struct gpu_shot_stats st;
+	CHECK(gpu_shot_render(shot, level, &st));
+	CHECK(gpu_shot_read_rgba(shot, level, img));
+	return img;
+}
+
+static float *cpu_image(int level, const struct resolve_edit *e, size_t ne)
+{
+	struct resolve_opts o = { .diag = stderr, .level = level, .edits = e, .nedits = ne };
+	struct resolve_result r;
+	if (!resolve_cpu(shot_path, &o, &r)) {
+		CHECK(!"resolve_cpu failed");
+		return calloc((size_t)W * H * 4, sizeof(float));
+	}
+	return r.rgba;
+}
+
+static void test_matches_cpu(void)
+{
+	for (int level = 0; level <= 3; level++) {
+		float *g = gpu_image(level), *c = cpu_image(level, NULL, 0);
+		size_t at = 0;
+		double r = max_rel(g, c, (size_t)W * H * 4, &at);
+		CHECK(all_finite(g, (size_t)W * H * 4));
+		double sum = 0.0;
+		for (size_t i = 0; i < (size_t)W * H * 4; i++)
+			sum += i % 4 == 3 ? 0.0 : g[i];
+		CHECK(sum / ((double)W * H * 3) > 0.01);
+		if (!(r <= REL_TOL))
+			fprintf(stderr, "level %d: relative difference %g at pixel %zu\n", level, r,
+				at / 4);
+		CHECK(r <= REL_TOL);
+		free(g);
+		free(c);
+	}
+}
+
+static uint32_t rng = 0x9e3779b9u;
+
+static double uniform(void)
+{
+	rng ^= rng << 13;
+	rng ^= rng >> 17;
+	rng ^= rng << 5;
+	return (rng >> 8) * (1.0 / 16777216.0);
+}
+
+static void test_stability(void)
+{
+	float *before = gpu_image(3);
+	float inten[16], from[16], color[16];
+	uint32_t ni, nf, nc;
+	CHECK(gpu_shot_get(shot, "3", "intensity", inten, &ni) && ni == 1);
+	CHECK(gpu_shot_get(shot, "3", "from", from, &nf) && nf == 3);
+	CHECK(gpu_shot_get(shot, "3", "lightcolor", color, &nc) && nc == 3);
+	/* the values gpu_shot_get gives are in current space: edit in the light's space */
+	const float from0[3] = { 1, 3, -1 };
+	char err[256];
+	bool finite = true;
+	for (int i = 0; i < NEDITS; i++) {
+		float v = (float)pow(10.0, -4.0 + 8.0 * uniform());
+		float c[3] = { (float)uniform(), (float)uniform(), (float)uniform() };
+		float p[3] = { (float)(uniform() * 4 - 2), (float)(uniform() * 4), (float)(uniform() * 4 - 2) };
+		CHECK(gpu_shot_set(shot, "3", "intensity", &v, 1, err, sizeof(err)));
+		if (i % 3 == 0)
+			CHECK(gpu_shot_set(shot, "3", "lightcolor", c, 3, err, sizeof(err)));
+		if (i % 7 == 0)
+			CHECK(gpu_shot_set(shot, "3", "from", p, 3, err, sizeof(err)));
+		/* into the cache: the next render subtracts the old and adds the new */
+		CHECK(gpu_shot_freeze(shot, "3", true, err, sizeof(err)));
+		int level = i % 1000 == 999 ? 3 : 0;
+		CHECK(gpu_shot_render(shot, level, NULL));
+		if (i % 10000 == 9999) {
+			float *img = gpu_image(level);
+			finite = finite && all_finite(img, (size_t)W * H * 4);
+			free(img);
+		}
+		if (test_failures)
+			break;
+	}
+	CHECK(finite);
+	float one = 12.0f;
+	float col0[3] = { 1, 1, 1 };
+	CHECK(gpu_shot_set(shot, "3", "intensity", &one, 1, err, sizeof(err)));
+	CHECK(gpu_shot_set(shot, "3", "lightcolor", col0, 3, err, sizeof(err)));
+	CHECK(gpu_shot_set(shot, "3", "from", from0, 3, err, sizeof(err)));
+	CHECK(gpu_shot_freeze(shot, "3", true, err, sizeof(err)));
+	float after_i[16], after_f[16];
+	CHECK(gpu_shot_get(shot, "3", "intensity", after_i, &ni) && after_i[0] == inten[0]);
+	CHECK(gpu_shot_get(shot, "3", "from", after_f, &nf) && !memcmp(after_f, from, 12));
+	float *after = gpu_image(3);
+	size_t at = 0;
+	double r = max_rel(after, before, (size_t)W * H * 4, &at);
+	printf("after %d edits folded into the light cache and restored: relative difference "
+	       "%g\n", NEDITS, r);
+	CHECK(r <= REL_TOL);
+	free(before);
+	free(after);
+}
+
+static void test_refused(void)
+{
+	float *before = gpu_image(3);
+	char err[256];
+	float nan = NAN, inf = INFINITY, big = 4.0f, v3[3] = { 1, NAN, 0 };
+	err[0] = '\0';
+	CHECK(!gpu_shot_set(shot, "3", "intensity", &nan, 1, err, sizeof(err)));
+	CHECK(strstr(err, "finite") != NULL);
+	CHECK(!gpu_shot_set(shot, "3", "intensity", &inf, 1, err, sizeof(err)));
+	CHECK(!gpu_shot_set(shot, "3", "coneangle", &big, 1, err, sizeof(err)));
+	CHECK(strstr(err, "outside") != NULL);
+	CHECK(!gpu_shot_set(shot, "3", "from", v3, 3, err, sizeof(err)));
+	CHECK(!gpu_shot_set(shot, "3", "from", v3, 2, err, sizeof(err)));
+	CHECK(!gpu_shot_set(shot, "9", "intensity", &big, 1, err, sizeof(err)));
+	CHECK(strstr(err, "no light named '9'") != NULL);
+	CHECK(!gpu_shot_set(shot, "3", "nope", &big, 1, err, sizeof(err)));
+	CHECK(!gpu_shot_link(shot, "3", 100000, false, err, sizeof(err)));
+	float *after = gpu_image(3);
+	CHECK(!memcmp(before, after, (size_t)W * H * 4 * sizeof(float)));
+	free(before);
+	free(after);
+}
+
+static void test_mute_solo_link(void)
+{
+	char err[256];
+	struct resolve_edit off2 = { .light = "2", .param = "intensity", .values = { 0 }, .nvalues = 1 };
+	float *cpu_off2 = cpu_image(3, &off2, 1);
+	CHECK(gpu_shot_mute(shot, "2", true, err, sizeof(err)));
+	float *muted = gpu_image(3);
+	CHECK(max_rel(muted, cpu_off2, (size_t)W * H * 4, NULL) <= REL_TOL);
+	CHECK(gpu_shot_mute(shot, "2", false, err, sizeof(err)));
+	/* unlinking every object from light 2 is muting it */
+	for (uint32_t o = 0; o < 64; o++)
+		if (!gpu_shot_link(shot, "2", o, false, err, sizeof(err)))
+			break;
+	float *unlinked = gpu_image(3);
+	CHECK(max_rel(unlinked, muted, (size_t)W * H * 4, NULL) <= 1e-6);
+	for (uint32_t o = 0; o < 64; o++)
+		if (!gpu_shot_link(shot, "2", o, true, err, sizeof(err)))
+			break;
+	/* solo 3: the others at intensity 0 */
+	struct resolve_edit others[3] = {
+		{ .light = "1", .param = "intensity", .nvalues = 1 },
+		{ .light = "2", .param = "intensity", .nvalues = 1 },
+		{ .light = "4", .param = "intensity", .nvalues = 1 },
+	};
+	float *cpu_solo = cpu_image(3, others, 3);
+	CHECK(gpu_shot_solo(shot, "3", err, sizeof(err)));
+	float *solo = gpu_image(3);
+	CHECK(max_rel(solo, cpu_solo, (size_t)W * H * 4, NULL) <= REL_TOL);
+	CHECK(gpu_shot_solo(shot, NULL, err, sizeof(err)));
+	float *back = gpu_image(3), *cpu = cpu_image(3, NULL, 0);
+	CHECK(max_rel(back, cpu, (size_t)W * H * 4, NULL) <= REL_TOL);
+	free(cpu_off2);
+	free(muted);
+	free(unlinked);
+	free(cpu_solo);
+	free(solo);
+	free(back);
+	free(cpu);
+}
+
+static void test_graph_work(void)
+{
+	struct gpu_shot_stats st;
+	char err[256];
+	CHECK(gpu_shot_render(shot, 3, &st));
+	CHECK(gpu_shot_render(shot, 3, &st));
+	CHECK(st.shaded == 0 && st.dispatches == 0);
+	/* light 4 is frozen: its first edit shades the old and the new state, later
+	 * edits only the new one, each sample once */
+	float v = 0.5f;
+	CHECK(gpu_shot_set(shot, "4", "intensity", &v, 1, err, sizeof(err)));
+	CHECK(gpu_shot_render(shot, 3, &st));
+	uint64_t first = st.shaded;
+	v = 0.6f;
+	CHECK(gpu_shot_set(shot, "4", "intensity", &v, 1, err, sizeof(err)));
+	CHECK(gpu_shot_render(shot, 3, &st));
+	CHECK(first == 2 * st.shaded);
+	CHECK(st.shaded == gpu_shot_samples(shot));
+	/* a coarse level shades only its band */
+	v = 0.7f;
+	CHECK(gpu_shot_set(shot, "4", "intensity", &v, 1, err, sizeof(err)));
+	CHECK(gpu_shot_render(shot, 0, &st));
+	CHECK(st.shaded > 0 && st.shaded * 8 < gpu_shot_samples(shot));
+	v = 0.8f;
+	CHECK(gpu_shot_set(shot, "4", "intensity", &v, 1, err, sizeof(err)));
+	CHECK(gpu_shot_render(shot, 3, &st));
+}
+
+int main(int argc, char **argv)
+{
+	if (argc < 2) {
+		fprintf(stderr, "usage: test_runtime PATH/TO/relight\n");
+		return 2;
+	}
+	char dir[] = "/tmp/relight-test-runtime-XXXXXX";
+	char relight[1024], cwd[512];
+	if (argv[1][0] == '/')
+		snprintf(relight, sizeof(relight), "%s", argv[1]);
+	else
+		snprintf(relight, sizeof(relight), "%s/%s", getcwd(cwd, sizeof(cwd)) ? cwd : ".",
+			 argv[1]);
+	if (!mkdtemp(dir))
+		return 1;
+	char cmd[2048];
+	snprintf(cmd, sizeof(cmd), "cd %s && cat > hard.rib && %s bake -q -o hard.shot.exr hard.rib",
+		 dir, relight);
+	FILE *p = popen(cmd, "w");
+	bool baked = p && fputs(scene, p) >= 0;
+	baked = p && pclose(p) == 0 && baked;
+	snprintf(shot_path, sizeof(shot_path), "%s/hard.shot.exr", dir);
+	char err[512];
+	ctx = baked ? gpu_create(err, sizeof(err)) : NULL;
+	int rc;
+	if (!baked) {
+		fprintf(stderr, "test_runtime: baking the scene failed\n");
+		rc = 1;
+	} else if (!ctx) {
+		printf("SKIP: no OpenGL 4.3 context: %s\n", err);
+		rc = 77;
+	} else {
+		shot = gpu_shot_open(ctx, shot_path, NULL);
+		CHECK(shot != NULL);
+		if (shot) {
+			W = gpu_shot_width(shot);
+			H = gpu_shot_height(shot);
+			RUN(test_matches_cpu);
+			RUN(test_refused);
+			RUN(test_mute_solo_link);
+			RUN(test_graph_work);
+			RUN(test_stability);
+			gpu_shot_close(shot);
+		}
+		rc = test_finish();
+	}
+	gpu_destroy(ctx);
+	snprintf(cmd, sizeof(cmd), "rm -rf %s", dir);
+	if (system(cmd) != 0)
+		fprintf(stderr, "test_runtime: cannot remove %s\n", dir);
+	return rc;
+}
