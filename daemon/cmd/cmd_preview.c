@@ -7,7 +7,7 @@
  */
 #include "cmd.h"
 #include "graph.h"
-#include "resolve.h"
+#include "bake/resolve.h"
 #include "runtime.h"
 #include "texture.h"
 

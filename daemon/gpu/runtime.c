@@ -27,6 +27,7 @@
 
 #include "arena.h"
 #include "graph.h"
+#include "lighthost.h"
 #include "log.h"
 #include "mathlib.h"
 #include "resolve.h"
@@ -420,6 +421,7 @@ static bool bind_shadows(struct gpu_shot *s, const struct kernel *k, const struc
 {
 	for (uint32_t i = 0; i < k->layout.nshadows; i++) {
 		const struct gpu_shadow_map *m = L && L->maps ? L->maps[i] : NULL;
+		b[*nb].buffer = s->zero;
 		if (!gpu_shadow_map_bind(s->ctx, k->prog, i, m, s->c2w, &b[*nb]))
 			return fail(s, "cannot bind the shadow map of a kernel");
 		b[*nb].unit = SL_GLSL_SHADOW_UNIT0 + i;
@@ -1599,4 +1601,96 @@ bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px)
 	uint32_t n = s->width * s->height;
 	return gpu_encode_srgb8(s->ctx, s->rgba[level], n, s->px8) &&
 	       gpu_buffer_read(s->px8, 0, (size_t)n * 4, px);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Measuring                                                                 */
+
+/* Float operations per sample of surface @sf lit by @L, on the interpreter. */
+static double count_flops(struct gpu_shot *s, struct surface *sf, struct light *L)
+{
+	uint32_t n = sf->nrows < 1024 ? (uint32_t)sf->nrows : 1024;
+	const struct sl_glsl_layout *lay = &sf->base.layout;
+	uint32_t stride = lay->in_stride;
+	float *rec = rl_xmalloc(((size_t)n * stride + 1) * sizeof(float));
+	struct sl_exec *x = sl_exec_create(sf->spec->dynamic, n);
+	struct sl_exec *lx = sl_exec_create(s->lshaders[L->shader].prog, n);
+	const cJSON *lm = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(s->meta, "lights"),
+					     (int)(L - s->lights));
+	const cJSON *psets = cJSON_GetObjectItemCaseSensitive(sf->meta, "param_sets");
+	double per = -1.0;
+	if (x && lx && gpu_buffer_read(sf->records, 0, (size_t)n * stride * sizeof(float), rec) &&
+	    shot_meta_set_params(lx, cJSON_GetObjectItemCaseSensitive(lm, "params"), s->path,
+				 s->diag) &&
+	    (!cJSON_GetArraySize(psets) ||
+	     shot_meta_set_params(x, cJSON_GetArrayItem(psets, 0), s->path, s->diag)) &&
+	    sl_spec_bind_cache(sf->spec, x, n, rec, stride, lay->in_offset)) {
+		struct sl_lighthost lh;
+		sl_lighthost_init(&lh, &lx, 1);
+		lh.light_shader_mats = (const float (*)[16])L->to_camera;
+		static const char *const space_names[] = { "world" };
+		lh.space_names = space_names;
+		lh.space_mats = (const float (*)[16])s->w2c;
+		lh.nspaces = 1;
+		sl_exec_count_ops(x, true);
+		sl_exec_count_ops(lx, true);
+		if (sl_exec_run(x, &lh.host) && n)
+			per = (double)(sl_exec_ops(x) + sl_exec_ops(lx)) / n;
+	}
+	sl_exec_destroy(x);
+	sl_exec_destroy(lx);
+	free(rec);
+	return per;
+}
+
+bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_profile *out,
+		      char *err, size_t errlen)
+{
+	memset(out, 0, sizeof(*out));
+	struct light *L = find(s, light, err, errlen);
+	if (!L)
+		return false;
+	double flops = 0.0;
+	for (uint32_t si = 0; si < s->nsurfaces; si++) {
+		struct surface *sf = &s->surfaces[si];
+		if (!sf->nrows)
+			continue;
+		struct kernel *k = &sf->lk[L->shader];
+		set_uniforms(k->prog, &k->layout, s->lshaders[L->shader].prog, &L->cur, "l0_");
+		gpu_uniform_mat4(k->prog, "l0_shader", L->to_camera);
+		gpu_uniform_mat4(k->prog, "space_world", s->w2c);
+		if (sf->nparamsets)
+			set_uniforms(k->prog, &k->layout, sf->spec->dynamic, &sf->pvals[0], "p_");
+		gpu_uniform_int(k->prog, "u_first", 0);
+		struct gpu_binding b[2 + 64];
+		uint32_t nb = 0;
+		b[nb++] = (struct gpu_binding){ 0, false, sf->records };
+		b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
+		if (!bind_shadows(s, k, L, b, &nb))
+			return false;
+		double best = 1e30;
+		for (int r = 0; r < 3; r++) {
+			if (!gpu_finish(s->ctx))
+				return false;
+			double t0 = now_ms();
+			if (!gpu_dispatch(s->ctx, k->prog, b, nb, (uint32_t)sf->nrows) ||
+			    !gpu_finish(s->ctx)) {
+				errorf(err, errlen, "running the kernel of '%s' failed", sf->name);
+				return false;
+			}
+			double t = now_ms() - t0;
+			best = t < best ? t : best;
+		}
+		double per = count_flops(s, sf, L);
+		if (per < 0) {
+			errorf(err, errlen, "counting the operations of '%s' failed", sf->name);
+			return false;
+		}
+		out->kernel_ms += best;
+		out->samples += sf->nrows;
+		flops += per * (double)sf->nrows;
+	}
+	out->flops_per_sample = out->samples ? flops / (double)out->samples : 0.0;
+	out->flops = out->kernel_ms > 0 ? flops / (out->kernel_ms * 1e-3) : 0.0;
+	return true;
 }

@@ -136,4 +136,25 @@ bool gpu_shot_read_rgba(struct gpu_shot *s, int level, float *rgba);
 /** Level @level's image as 8-bit sRGB (RGBA8, R in the low byte), encoded on the GPU. */
 bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px);
 
+/* ---- measuring ---- */
+
+struct gpu_shot_profile {
+	uint64_t samples;          /* shading samples the kernels ran over */
+	double kernel_ms;          /* the shading kernels alone, best of three runs */
+	double flops_per_sample;   /* float operations a sample takes (surface and light),
+				      counted on the interpreter (exec.h sl_exec_ops) over up
+				      to 1024 samples of each surface */
+	double flops;              /* samples * flops_per_sample / kernel time */
+};
+
+/**
+ * Time the shading kernels of light @light over every sample of the shot,
+ * without the light cache, the resolve or anything else, and count the
+ * arithmetic they do: the shading rate to set beside the device's
+ * arithmetic rate (microbench.h). The counts use the light's baked
+ * parameters. False with the reason in @err.
+ */
+bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_profile *out,
+		      char *err, size_t errlen);
+
 #endif

@@ -1,39 +1,118 @@
 /*
- * Shadow maps on the GPU: see shadowmap.h.
+ * Shadow maps on the GPU: see shadowmap.h. The depth plane is uploaded as
+ * it is in the texture system (reyes_tex_shadow_map): one float per texel,
+ * row-major, so the kernel's texel index is the renderer's.
  */
 #include "shadowmap.h"
+#include "glsl.h"
+#include "texture.h"
 
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct gpu_shadow_map {
+	struct gpu_buffer *depth;
+	uint32_t width, height;
+	float world_to_camera[16], world_to_ndc[16];
+	float bias;
+};
 
 struct gpu_shadow_map *gpu_shadow_map_load(struct gpu_ctx *ctx, struct reyes_texsys *ts,
 					   const char *name, char *err, size_t errlen)
 {
-	(void)ctx;
-	(void)ts;
-	snprintf(err, errlen, "%s: shadow maps on the GPU are not available", name);
-	return NULL;
+	char dummy[1];
+	if (!err || !errlen) {
+		err = dummy;
+		errlen = sizeof(dummy);
+	}
+	err[0] = '\0';
+	if (!ctx || !ts || !name || !name[0]) {
+		snprintf(err, errlen, "%s: no context, texture system or map name",
+			 name && name[0] ? name : "(no name)");
+		return NULL;
+	}
+	struct reyes_shadow_map_info info;
+	if (!reyes_tex_shadow_map(ts, name, &info)) {
+		snprintf(err, errlen, "%s: not found, unreadable, or not a shadow map", name);
+		return NULL;
+	}
+	size_t n = (size_t)info.width * info.height;
+	if (!n || n > (size_t)INT32_MAX) {
+		snprintf(err, errlen, "%s: a %ux%u map cannot be used on the GPU", name, info.width,
+			 info.height);
+		return NULL;
+	}
+	float *plane = malloc(n * sizeof(float));
+	struct gpu_shadow_map *m = calloc(1, sizeof(*m));
+	if (!plane || !m) {
+		snprintf(err, errlen, "%s: out of memory", name);
+		free(plane);
+		free(m);
+		return NULL;
+	}
+	for (size_t i = 0; i < n; i++)
+		plane[i] = info.depth[i * info.stride];
+	m->depth = gpu_buffer_create(ctx, n * sizeof(float), plane);
+	free(plane);
+	if (!m->depth) {
+		snprintf(err, errlen, "%s: cannot upload %zu depths", name, n);
+		free(m);
+		return NULL;
+	}
+	m->width = info.width;
+	m->height = info.height;
+	memcpy(m->world_to_camera, info.world_to_camera, sizeof(m->world_to_camera));
+	memcpy(m->world_to_ndc, info.world_to_ndc, sizeof(m->world_to_ndc));
+	m->bias = info.bias;
+	return m;
 }
 
 void gpu_shadow_map_destroy(struct gpu_shadow_map *m)
 {
-	(void)m;
+	if (!m)
+		return;
+	gpu_buffer_destroy(m->depth);
+	free(m);
 }
 
 size_t gpu_shadow_map_bytes(const struct gpu_shadow_map *m)
 {
-	(void)m;
-	return 0;
+	return m ? (size_t)m->width * m->height * sizeof(float) : 0;
+}
+
+void gpu_shadow_map_size(const struct gpu_shadow_map *m, uint32_t *width, uint32_t *height)
+{
+	if (width)
+		*width = m ? m->width : 0;
+	if (height)
+		*height = m ? m->height : 0;
 }
 
 bool gpu_shadow_map_bind(struct gpu_ctx *ctx, struct gpu_program *p, uint32_t site,
 			 const struct gpu_shadow_map *m, const float to_world[16],
 			 struct gpu_binding *b)
 {
-	(void)ctx;
-	(void)p;
-	(void)site;
-	(void)m;
-	(void)to_world;
-	(void)b;
-	return false;
+	if (!ctx || !p || !b || !to_world || site > 1000000u || (!m && !b->buffer))
+		return false;
+	char name[64];
+	snprintf(name, sizeof(name), "u_shadow%u_size[0]", site);
+	if (!gpu_uniform_int(p, name, m ? (int)m->width : 0))
+		return false;
+	snprintf(name, sizeof(name), "u_shadow%u_size[1]", site);
+	gpu_uniform_int(p, name, m ? (int)m->height : 0);
+	static const float zero[16];
+	snprintf(name, sizeof(name), "u_shadow%u_to_camera", site);
+	gpu_uniform_mat4(p, name, m ? m->world_to_camera : zero);
+	snprintf(name, sizeof(name), "u_shadow%u_to_ndc", site);
+	gpu_uniform_mat4(p, name, m ? m->world_to_ndc : zero);
+	snprintf(name, sizeof(name), "u_shadow%u_bias", site);
+	float bias = m ? m->bias : 0.0f;
+	gpu_uniform_float(p, name, &bias, 1);
+	gpu_uniform_mat4(p, "u_to_world", to_world);
+	b->unit = SL_GLSL_SHADOW_UNIT0 + site;
+	b->ssbo = false;
+	if (m)
+		b->buffer = m->depth;
+	return true;
 }

@@ -28,11 +28,20 @@ void gpu_shadow_map_destroy(struct gpu_shadow_map *m);
 /** Bytes the map takes in GPU memory. */
 size_t gpu_shadow_map_bytes(const struct gpu_shadow_map *m);
 
+/** The map's size in texels. */
+void gpu_shadow_map_size(const struct gpu_shadow_map *m, uint32_t *width, uint32_t *height);
+
 /**
- * Set the uniforms of shadow() site @site of @p for map @m (NULL: no map,
- * the lookup gives the fill) and fill @b with the binding to pass to
- * gpu_dispatch() (a placeholder buffer when @m is NULL). @to_world takes the
- * kernel's current space to world. False when @p has no such site.
+ * Set the uniforms of shadow() site @site of @p (sl/glsl.h: u_shadow<site>_*,
+ * u_to_world) for map @m and fill @b with the binding to pass to
+ * gpu_dispatch(): the map's depths at texture unit SL_GLSL_SHADOW_UNIT0 +
+ * @site. @m NULL: no map, the lookup gives the fill (size 0 x 0); the kernel
+ * then reads nothing at that unit, but a binding needs some buffer, so @b
+ * must come in with b->buffer set to any buffer of @ctx (the kernel's input
+ * buffer will do) and only its unit and kind are set. @to_world takes the
+ * kernel's current space to world (what reyes_texsys_create() got as
+ * camera_to_world). False when @p has no such site, or @m is NULL and no
+ * buffer came in.
  */
 bool gpu_shadow_map_bind(struct gpu_ctx *ctx, struct gpu_program *p, uint32_t site,
 			 const struct gpu_shadow_map *m, const float to_world[16],

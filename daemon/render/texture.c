@@ -877,6 +877,27 @@ bool reyes_tex_shadow(struct reyes_texsys *ts, const struct sl_tex_lookup *q)
 	return true;
 }
 
+bool reyes_tex_shadow_map(struct reyes_texsys *ts, const char *name,
+			  struct reyes_shadow_map_info *out)
+{
+	if (!out)
+		return false;
+	memset(out, 0, sizeof(*out));
+	const struct tex *tx = get(ts, name);
+	if (!tx || !tx->ok || !tx->has_matrices || tx->zchan < 0)
+		return false;
+	const struct reyes_image *map = &tx->f.levels[0];
+	out->width = map->width;
+	out->height = map->height;
+	out->depth = map->data + tx->zchan;
+	out->stride = map->nchannels;
+	memcpy(out->world_to_camera, tx->world_to_camera, sizeof(out->world_to_camera));
+	memcpy(out->world_to_ndc, tx->world_to_ndc, sizeof(out->world_to_ndc));
+	out->bias = tx->f.has_bias ? tx->f.bias : DEFAULT_SHADOW_BIAS;
+	memcpy(out->camera_to_world, ts->camera_to_world, sizeof(out->camera_to_world));
+	return true;
+}
+
 /* ------------------------------------------------------------------------ */
 /* textureinfo                                                               */
 

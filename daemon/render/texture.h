@@ -74,4 +74,24 @@ bool reyes_tex_shadow(struct reyes_texsys *ts, const struct sl_tex_lookup *q);
 bool reyes_tex_info(struct reyes_texsys *ts, const char *name, const char *query, int type,
 		    int arraylen, float *out, const char **sout);
 
+/** A shadow map as reyes_tex_shadow() reads it (see reyes_tex_shadow_map). */
+struct reyes_shadow_map_info {
+	uint32_t width, height;
+	/* Texel (x, y)'s depth at depth[(y * width + x) * stride]; valid while the texsys lives. */
+	const float *depth;
+	uint32_t stride;
+	float world_to_camera[16];      /* row-vector convention, as struct reyes_image */
+	float world_to_ndc[16];
+	float bias;                     /* the map's own bias, else the default */
+	float camera_to_world[16];      /* the texsys's "current" to world */
+};
+
+/**
+ * Shadow map @name as shadow() finds it through @ts (loaded on first use).
+ * False when it is missing, unreadable or not a shadow map (no depth
+ * channel or no camera matrices): then shadow() gives the fill.
+ */
+bool reyes_tex_shadow_map(struct reyes_texsys *ts, const char *name,
+			  struct reyes_shadow_map_info *out);
+
 #endif

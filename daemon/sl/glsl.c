@@ -92,6 +92,9 @@ void sl_glsl_error(struct glsl_gen *g, const struct sl_insn *in, const char *fmt
 
 void sl_glsl_warning(struct glsl_gen *g, const struct sl_insn *in, const char *fmt, ...)
 {
+	/* A moved copy repeats code whose warnings were given once already. */
+	if (g->moved)
+		return;
 	va_list ap;
 	va_start(ap, fmt);
 	report(g, in, "warning", fmt, ap);
@@ -278,11 +281,15 @@ static const char *const_expr(struct glsl_gen *g, const struct sl_program *prog,
 	return s;
 }
 
+static const char *moved_name(struct glsl_gen *g, struct glsl_prog *p, int32_t r, int dir);
+
 const char *sl_glsl_op(struct glsl_gen *g, int32_t r, int want)
 {
 	const struct sl_program *prog = g->cur->prog;
 	const char *e = prog->regs[r].kind == SL_REG_CONST ? const_expr(g, prog, r)
 							  : g->cur->name[r];
+	if (g->moved && g->cur->need && g->cur->need[r])
+		e = moved_name(g, g->cur, r, g->moved);
 	int nc = sl_glsl_ncomp(prog, r);
 	if (want == 0 || prog->regs[r].arraylen > 0 || nc != 1 || want == 1)
 		return e;
@@ -295,12 +302,59 @@ const char *sl_glsl_op(struct glsl_gen *g, int32_t r, int want)
 
 const char *sl_glsl_lv(struct glsl_gen *g, int32_t r)
 {
-	return g->cur->prog->regs[r].kind == SL_REG_CONST ? NULL : g->cur->name[r];
+	if (g->cur->prog->regs[r].kind == SL_REG_CONST)
+		return NULL;
+	return g->moved ? moved_name(g, g->cur, r, g->moved) : g->cur->name[r];
 }
 
 const char *sl_glsl_cstr(struct glsl_gen *g, int32_t r)
 {
 	return g->cur->cstr[r];
+}
+
+/* What register @r of @p holds before any code runs (as the interpreter starts it). */
+static const char *reg_init(const struct glsl_prog *p, int32_t r)
+{
+	const struct sl_reg *rg = &p->prog->regs[r];
+	/* As the interpreter starts a surface: Ci = 0, Oi = 1. */
+	if (p->prog->kind == SL_SHADER_SURFACE && rg->kind == SL_REG_GLOBAL &&
+	    rg->global == SL_GLOBAL_OI)
+		return "vec3(1.0)";
+	return zero_of(sl_glsl_ncomp(p->prog, r));
+}
+
+/*
+ * The copy of register @r of @p moved one grid step along u (@dir 1) or v
+ * (2), declared on first use and starting as the register starts.
+ */
+static const char *moved_name(struct glsl_gen *g, struct glsl_prog *p, int32_t r, int dir)
+{
+	const char *name = SL_GLSL_FMT(g, "%c%s", dir == 1 ? 'u' : 'v', p->name[r]);
+	uint8_t bit = (uint8_t)dir;
+	if (p->mdecl && !(p->mdecl[r] & bit)) {
+		p->mdecl[r] |= bit;
+		const struct sl_reg *rg = &p->prog->regs[r];
+		const char *t = type_name(sl_glsl_ncomp(p->prog, r));
+		if (rg->arraylen)
+			rl_strbuf_printf(&g->sec[GS_GLOBALS], "%s %s[%d];\n", t, name, rg->arraylen);
+		else
+			rl_strbuf_printf(&g->sec[GS_GLOBALS], "%s %s = %s;\n", t, name, reg_init(p, r));
+	}
+	return name;
+}
+
+int sl_glsl_class(const struct glsl_gen *g, int32_t r)
+{
+	return g->cur->cls ? g->cur->cls[r] : 0;
+}
+
+const char *sl_glsl_moved(struct glsl_gen *g, int32_t r, int want, int dir)
+{
+	int saved = g->moved;
+	g->moved = dir;
+	const char *e = sl_glsl_op(g, r, want);
+	g->moved = saved;
+	return e;
 }
 
 /* A register name's readable part: letters, digits and single underscores. */
@@ -617,6 +671,15 @@ static bool prepare(struct glsl_gen *g, struct glsl_prog *p, const struct sl_pro
 	p->exits = rl_arena_alloc(g->arena, n + 1);
 	p->loopcont = rl_arena_alloc(g->arena, (n + 1) * sizeof(*p->loopcont));
 	p->declared = rl_arena_alloc(g->arena, n + 1);
+	if (g->stencil) {
+		p->cls = rl_arena_alloc(g->arena, nr + 1);
+		p->need = rl_arena_alloc(g->arena, nr + 1);
+		p->mdecl = rl_arena_alloc(g->arena, nr + 1);
+		p->copy_of = rl_arena_alloc(g->arena, (nr + 1) * sizeof(*p->copy_of));
+		p->site = rl_arena_alloc(g->arena, (n + 1) * sizeof(*p->site));
+		for (uint32_t i = 0; i <= n; i++)
+			p->site[i] = -1;
+	}
 	for (uint32_t i = 0; i <= n; i++) {
 		p->target[i] = -1;
 		p->exit_lo[i] = p->exit_hi[i] = NONE;
@@ -685,6 +748,8 @@ static bool prepare(struct glsl_gen *g, struct glsl_prog *p, const struct sl_pro
 				if (call_writes_arg(in, k))
 					writes[in->args[k]] += 2;
 	}
+	for (uint32_t r = 0; p->copy_of && r < nr; r++)
+		p->copy_of[r] = writes[r] == 1 && prog->regs[r].kind != SL_REG_CONST ? src[r] : -1;
 	for (uint32_t r = 0; r < nr; r++) {
 		const struct sl_reg *rg = &prog->regs[r];
 		if (rg->type != SL_TYPE_STRING || rg->arraylen)
@@ -795,6 +860,8 @@ static bool crossed(const struct glsl_gen *g, uint32_t co, uint32_t cc)
 static void emit_range(struct glsl_gen *g, uint32_t b, uint32_t e);
 
 static void emit_insn(struct glsl_gen *g, const struct sl_insn *in);
+
+static void emit_moved(struct glsl_gen *g, const struct sl_insn *in);
 
 static void emit_if(struct glsl_gen *g, uint32_t pc)
 {
@@ -940,6 +1007,13 @@ static void emit_illuminance(struct glsl_gen *g, uint32_t pc)
 	/* Position, axis and angle as they were on entry, for every light. */
 	declare(g, pc, 4, "vec3", P, "vec3(0.0)");
 	sl_glsl_line(g, "%s = %s;", P, sl_glsl_op(g, in->args[k], 3));
+	const char *Pu = local_name(g, "iPu", pc), *Pv = local_name(g, "iPv", pc);
+	if (g->any_moved_ps) {
+		declare(g, pc, 64, "vec3", Pu, "vec3(0.0)");
+		declare(g, pc, 128, "vec3", Pv, "vec3(0.0)");
+		sl_glsl_line(g, "%s = %s;", Pu, sl_glsl_moved(g, in->args[k], 3, 1));
+		sl_glsl_line(g, "%s = %s;", Pv, sl_glsl_moved(g, in->args[k], 3, 2));
+	}
 	if (cone) {
 		declare(g, pc, 8, "vec3", A, "vec3(0.0)");
 		declare(g, pc, 16, "float", N, "0.0");
@@ -969,7 +1043,10 @@ static void emit_illuminance(struct glsl_gen *g, uint32_t pc)
 			sl_glsl_line(g, "if (%s) {", test);
 			g->indent++;
 		}
-		sl_glsl_line(g, "light_%u(%s);", j, P);
+		if (g->lp[j].moved_ps)
+			sl_glsl_line(g, "light_%u(%s, %s, %s);", j, P, Pu, Pv);
+		else
+			sl_glsl_line(g, "light_%u(%s);", j, P);
 		sl_glsl_line(g, "if (!rl_amb) {");
 		g->indent++;
 		if (Lr >= 0)
@@ -1093,6 +1170,8 @@ static void emit_range(struct glsl_gen *g, uint32_t b, uint32_t e)
 			break;
 		default:
 			emit_insn(g, in);
+			if (g->stencil)
+				emit_moved(g, in);
 			break;
 		}
 		pc = close >= 0 ? (uint32_t)close + 1 : pc + 1;
@@ -1303,19 +1382,15 @@ static void declare_registers(struct glsl_gen *g)
 			rl_strbuf_printf(b, "%s %s[%d];\n", type_name(nc), p->name[r], rg->arraylen);
 			continue;
 		}
-		const char *init = zero_of(nc);
-		/* As the interpreter starts a surface: Ci = 0, Oi = 1. */
-		if (prog->kind == SL_SHADER_SURFACE && rg->kind == SL_REG_GLOBAL &&
-		    rg->global == SL_GLOBAL_OI)
-			init = "vec3(1.0)";
-		rl_strbuf_printf(b, "%s %s = %s;\n", type_name(nc), p->name[r], init);
+		rl_strbuf_printf(b, "%s %s = %s;\n", type_name(nc), p->name[r],
+				 reg_init(p, (int32_t)r));
 	}
 }
 
 /* Zero the arrays of the current program (scalars are zero from their declarations). */
 static void zero_arrays(struct glsl_gen *g)
 {
-	const struct glsl_prog *p = g->cur;
+	struct glsl_prog *p = g->cur;
 	const struct sl_program *prog = p->prog;
 	for (uint32_t r = 0; r < prog->nregs; r++) {
 		const struct sl_reg *rg = &prog->regs[r];
@@ -1323,6 +1398,10 @@ static void zero_arrays(struct glsl_gen *g)
 			continue;
 		sl_glsl_line(g, "for (int k = 0; k < %d; k++) %s[k] = %s;", rg->arraylen, p->name[r],
 			     zero_of(sl_glsl_ncomp(prog, (int32_t)r)));
+		for (int dir = 1; p->need && p->need[r] && dir <= 2; dir++)
+			sl_glsl_line(g, "for (int k = 0; k < %d; k++) %s[k] = %s;", rg->arraylen,
+				     moved_name(g, g->cur, (int32_t)r, dir),
+				     zero_of(sl_glsl_ncomp(prog, (int32_t)r)));
 	}
 }
 
@@ -1380,16 +1459,30 @@ static void emit_light(struct glsl_gen *g, uint32_t k)
 	declare_registers(g);
 	rl_strbuf_printf(&g->sec[GS_UNIFORMS], "uniform mat4 l%u_shader;\n", k);
 	sl_glsl_line(g, "/* light %u: %s */", k, prog->name ? prog->name : "?");
-	sl_glsl_line(g, "void light_%u(vec3 rl_Ps) {", k);
+	if (p->moved_ps)
+		sl_glsl_line(g, "void light_%u(vec3 rl_Ps, vec3 rl_Psu, vec3 rl_Psv) {", k);
+	else
+		sl_glsl_line(g, "void light_%u(vec3 rl_Ps) {", k);
 	g->indent++;
 	load_params(g, NULL);
 	const int32_t *gr = prog->global_reg;
 	static const int zeroed[] = { SL_GLOBAL_L, SL_GLOBAL_CL, SL_GLOBAL_OL };
-	for (size_t i = 0; i < sizeof(zeroed) / sizeof(zeroed[0]); i++)
-		if (gr[zeroed[i]] >= 0)
-			sl_glsl_line(g, "%s = vec3(0.0);", p->name[gr[zeroed[i]]]);
-	if (gr[SL_GLOBAL_PS] >= 0)
-		sl_glsl_line(g, "%s = rl_Ps;", p->name[gr[SL_GLOBAL_PS]]);
+	for (size_t i = 0; i < sizeof(zeroed) / sizeof(zeroed[0]); i++) {
+		int32_t r = gr[zeroed[i]];
+		if (r < 0)
+			continue;
+		sl_glsl_line(g, "%s = vec3(0.0);", p->name[r]);
+		for (int dir = 1; p->need && p->need[r] && dir <= 2; dir++)
+			sl_glsl_line(g, "%s = vec3(0.0);", moved_name(g, p, r, dir));
+	}
+	if (gr[SL_GLOBAL_PS] >= 0) {
+		int32_t r = gr[SL_GLOBAL_PS];
+		sl_glsl_line(g, "%s = rl_Ps;", p->name[r]);
+		if (p->moved_ps) {
+			sl_glsl_line(g, "%s = rl_Psu;", moved_name(g, p, r, 1));
+			sl_glsl_line(g, "%s = rl_Psv;", moved_name(g, p, r, 2));
+		}
+	}
 	/* As the light host does: E and time come from the surface when both have them. */
 	static const int shared[] = { SL_GLOBAL_E, SL_GLOBAL_TIME };
 	for (size_t i = 0; i < sizeof(shared) / sizeof(shared[0]); i++) {
@@ -1415,13 +1508,12 @@ static void emit_light(struct glsl_gen *g, uint32_t k)
 }
 
 /* Fetch input @r (ncomp x elements floats from @off) into its register. */
-static void load_input(struct glsl_gen *g, int32_t r, uint32_t off)
+static void load_input(struct glsl_gen *g, int32_t r, uint32_t off, const char *name)
 {
 	const struct sl_program *prog = g->surf;
 	const struct sl_reg *rg = &prog->regs[r];
 	int nc = sl_glsl_ncomp(prog, r);
 	int ne = rg->arraylen > 0 ? rg->arraylen : 1;
-	const char *name = g->sp.name[r];
 	for (int e = 0; e < ne; e++) {
 		const char *lv = rg->arraylen ? SL_GLSL_FMT(g, "%s[%d]", name, e) : name;
 		uint32_t o = off + (uint32_t)(e * nc);
@@ -1436,6 +1528,31 @@ static void load_input(struct glsl_gen *g, int32_t r, uint32_t off)
 				sl_glsl_line(g, "%s[%d][%d] = texelFetch(u_in, rl_in + %u).x;", lv, c / 4,
 					     c % 4, o + (uint32_t)c);
 		}
+	}
+}
+
+/*
+ * The copies of input @r moved along u and v: the value plus its step (as
+ * the interpreter's moved blocks are made), or the value itself for an input
+ * without steps (@ou, @ov NONE).
+ */
+static void load_moved(struct glsl_gen *g, int32_t r, uint32_t ou, uint32_t ov)
+{
+	const struct sl_reg *rg = &g->surf->regs[r];
+	const char *base = g->sp.name[r];
+	for (int dir = 1; dir <= 2; dir++) {
+		uint32_t off = dir == 1 ? ou : ov;
+		const char *m = moved_name(g, &g->sp, r, dir);
+		if (off == NONE) {
+			sl_glsl_line(g, "%s = %s;", m, base);
+			continue;
+		}
+		load_input(g, r, off, m);
+		if (rg->arraylen)
+			sl_glsl_line(g, "for (int k = 0; k < %d; k++) %s[k] = %s[k] + %s[k];",
+				     rg->arraylen, m, base, m);
+		else
+			sl_glsl_line(g, "%s = %s + %s;", m, base, m);
 	}
 }
 
@@ -1513,6 +1630,331 @@ static int32_t implicit_global(const struct sl_program *prog, const struct sl_in
 	}
 }
 
+/* ------------------------------------------------------------------------ */
+/* Derivative stencils                                                       */
+
+/*
+ * With input_steps, a derivative is a difference within the sample's
+ * stencil, as the interpreter takes it (sl_exec_set_stencil): what the
+ * operand is computed from runs again on the inputs moved one grid step
+ * along u and along v. Every register the derivatives need (p->need) has
+ * two moved copies, u<name> and v<name>, written by a copy of each
+ * instruction that writes it, right after it and under the same control
+ * flow (so a branch taken differently in the moved blocks than at the
+ * sample is not followed: the interpreter's masks would). Which registers
+ * those are comes from two passes over the kept code: forwards, what each
+ * register's value depends on (GC_* classes); backwards from the
+ * derivatives' operands, what they are computed from.
+ */
+
+static int numeric_args(const struct sl_program *prog, const struct sl_insn *in, int from)
+{
+	int k = from;
+	while (k < in->nargs && prog->regs[in->args[k]].type != SL_TYPE_STRING)
+		k++;
+	return k - from;
+}
+
+/* A CALL whose result is a derivative: the moved blocks get the sample's value. */
+static bool deriv_call(const struct sl_program *prog, const struct sl_insn *in)
+{
+	switch (sl_builtins[in->bi].id) {
+	case SL_BI_DU: case SL_BI_DV: case SL_BI_DERIV: case SL_BI_AREA:
+	case SL_BI_CALCULATENORMAL:
+		return true;
+	case SL_BI_FILTERSTEP:
+		return numeric_args(prog, in, 0) < 3;
+	default:
+		return false;
+	}
+}
+
+/* Does CALL @in compute what it writes from its arguments alone (a moved copy is the same call)? */
+static bool replayable(const struct sl_program *prog, const struct sl_insn *in)
+{
+	if (in->op != SL_OP_CALL)
+		return true;
+	if (deriv_call(prog, in))
+		return false;
+	switch (sl_builtins[in->bi].id) {
+	case SL_BI_TEXTURE: case SL_BI_ENVIRONMENT: case SL_BI_SHADOW: case SL_BI_TEXTUREINFO:
+	case SL_BI_AMBIENT: case SL_BI_DIFFUSE: case SL_BI_SPECULAR: case SL_BI_PHONG:
+	case SL_BI_LIGHTSOURCE: case SL_BI_SURFACE: case SL_BI_DISPLACEMENT:
+	case SL_BI_ATMOSPHERE: case SL_BI_INCIDENT: case SL_BI_OPPOSITE: case SL_BI_RANDOM:
+	case SL_BI_ATTRIBUTE: case SL_BI_OPTION: case SL_BI_RENDERERINFO: case SL_BI_PRINTF:
+	case SL_BI_FORMAT: case SL_BI_CONCAT: case SL_BI_DEPTH:
+		return false;
+	default:
+		return true;
+	}
+}
+
+/* The registers whose derivatives @in takes on the GPU (up to 2); returns how many. */
+static int deriv_operands(const struct sl_program *prog, const struct sl_insn *in, int32_t r[2])
+{
+	if (in->op != SL_OP_CALL)
+		return 0;
+	const int32_t *a = in->args;
+	switch (sl_builtins[in->bi].id) {
+	case SL_BI_DU: case SL_BI_DV: case SL_BI_AREA: case SL_BI_CALCULATENORMAL:
+		r[0] = in->nargs >= 1 ? a[0] : -1;
+		return r[0] >= 0;
+	case SL_BI_DERIV:
+		if (in->nargs < 2)
+			return 0;
+		r[0] = a[0];
+		r[1] = a[1];
+		return 2;
+	case SL_BI_FILTERSTEP:
+		if (in->nargs < 2 || numeric_args(prog, in, 0) >= 3)
+			return 0;
+		r[0] = a[1];
+		return 1;
+	case SL_BI_SHADOW:
+		/* Only a lookup by the lookup point's derivatives; texture() and
+		 * environment() with names known at run time give the fill. */
+		if (in->nargs < 3 || numeric_args(prog, in, 2) != 1 ||
+		    (prog->regs[a[0]].kind == SL_REG_CONST && prog->strings &&
+		     prog->strings[prog->regs[a[0]].cindex] &&
+		     !prog->strings[prog->regs[a[0]].cindex][0]))
+			return 0;
+		r[0] = a[2];
+		return 1;
+	default:
+		return 0;
+	}
+}
+
+/* The registers @in reads: its arguments, a partly written destination, an implicit global. */
+static uint32_t insn_reads(const struct sl_program *prog, const struct sl_insn *in, int32_t *out)
+{
+	uint32_t n = 0;
+	for (uint32_t k = 0; k < in->nargs; k++)
+		out[n++] = in->args[k];
+	if ((in->op == SL_OP_SETCOMP || in->op == SL_OP_ASET) && in->dst >= 0)
+		out[n++] = in->dst;
+	if (in->op == SL_OP_CALL) {
+		int32_t r = implicit_global(prog, in);
+		if (r >= 0)
+			out[n++] = r;
+	}
+	return n;
+}
+
+static bool add_class(struct glsl_prog *p, int32_t r, uint8_t c)
+{
+	if (r < 0 || (p->cls[r] | c) == p->cls[r])
+		return false;
+	p->cls[r] |= c;
+	return true;
+}
+
+/* Forwards: the class of every register the kept code writes, from the seeds in p->cls. */
+static void classify(struct glsl_gen *g, struct glsl_prog *p)
+{
+	const struct sl_program *prog = p->prog;
+	int32_t *rd = rl_xmalloc(((size_t)UINT16_MAX + 3) * sizeof(int32_t));
+	g->cur = p;
+	for (bool changed = true; changed;) {
+		changed = false;
+		for (uint32_t pc = prog->body_begin; pc < prog->ncode; pc++) {
+			const struct sl_insn *in = &prog->code[pc];
+			if (!kept(g, pc) || (in->dst < 0 && in->op != SL_OP_CALL))
+				continue;
+			uint8_t rc = 0;
+			uint32_t n = insn_reads(prog, in, rd);
+			for (uint32_t k = 0; k < n; k++)
+				rc |= p->cls[rd[k]];
+			uint8_t out = replayable(prog, in) ? rc :
+				      in->op == SL_OP_CALL && deriv_call(prog, in) ? rc & GC_OPAQUE :
+				      GC_OPAQUE;
+			if (!out)
+				continue;
+			changed |= add_class(p, in->dst, out);
+			if (in->op == SL_OP_CALL)
+				for (uint32_t k = 0; k < in->nargs; k++)
+					if (call_writes_arg(in, k))
+						changed |= add_class(p, in->args[k], out);
+		}
+	}
+	free(rd);
+}
+
+static bool add_need(struct glsl_prog *p, int32_t r)
+{
+	if (r < 0 || p->cls[r] != GC_STEP || p->need[r])
+		return false;
+	p->need[r] = 1;
+	return true;
+}
+
+/* Backwards: from the derivatives' operands (and @extra, -1 ended) to what they are computed from. */
+static void find_needs(struct glsl_gen *g, struct glsl_prog *p, const int32_t *extra)
+{
+	const struct sl_program *prog = p->prog;
+	int32_t *rd = rl_xmalloc(((size_t)UINT16_MAX + 3) * sizeof(int32_t));
+	g->cur = p;
+	for (uint32_t pc = prog->body_begin; pc < prog->ncode; pc++) {
+		int32_t r[2];
+		int n = kept(g, pc) ? deriv_operands(prog, &prog->code[pc], r) : 0;
+		for (int k = 0; k < n; k++)
+			add_need(p, r[k]);
+	}
+	for (; extra && *extra >= 0; extra++)
+		add_need(p, *extra);
+	for (bool changed = true; changed;) {
+		changed = false;
+		for (uint32_t pc = prog->body_begin; pc < prog->ncode; pc++) {
+			const struct sl_insn *in = &prog->code[pc];
+			if (!kept(g, pc) || !replayable(prog, in) ||
+			    (in->dst < 0 && in->op != SL_OP_CALL))
+				continue;
+			bool w = in->dst >= 0 && p->need[in->dst];
+			for (uint32_t k = 0; in->op == SL_OP_CALL && k < in->nargs; k++)
+				w = w || (call_writes_arg(in, k) && p->need[in->args[k]]);
+			if (!w)
+				continue;
+			uint32_t n = insn_reads(prog, in, rd);
+			for (uint32_t k = 0; k < n; k++)
+				changed |= add_need(p, rd[k]);
+		}
+	}
+	free(rd);
+}
+
+/*
+ * The surface's registers that lights get as Ps (illuminance positions; P
+ * for ambient(), diffuse(), ...), -1 ended, into @out (room for ncode + 2).
+ */
+static void ps_sources(struct glsl_gen *g, int32_t *out)
+{
+	const struct sl_program *prog = g->surf;
+	uint32_t n = 0;
+	bool lighting = false;
+	g->cur = &g->sp;
+	for (uint32_t pc = prog->body_begin; pc < prog->ncode; pc++) {
+		const struct sl_insn *in = &prog->code[pc];
+		if (!kept(g, pc))
+			continue;
+		if (in->op == SL_OP_ILLUMINANCE && in->nargs > (uint32_t)in->imm)
+			out[n++] = in->args[in->imm];
+		if (in->op == SL_OP_CALL && implicit_global(prog, in) >= 0 &&
+		    sl_builtins[in->bi].id != SL_BI_FACEFORWARD)
+			lighting = true;
+	}
+	if (lighting && prog->global_reg[SL_GLOBAL_P] >= 0)
+		out[n++] = prog->global_reg[SL_GLOBAL_P];
+	out[n] = -1;
+}
+
+static void analyze_stencils(struct glsl_gen *g)
+{
+	const struct sl_slice *s = g->slice;
+	struct glsl_prog *sp = &g->sp;
+	const int32_t *gr = g->surf->global_reg;
+	for (uint32_t i = 0; i < s->ninputs; i++)
+		sp->cls[s->inputs[i]] |= s->input_steps[i] ? GC_STEP : GC_OPAQUE;
+	/* What illuminance bodies get from the lights. */
+	static const int from_lights[] = { SL_GLOBAL_L, SL_GLOBAL_CL, SL_GLOBAL_OL };
+	for (size_t k = 0; k < sizeof(from_lights) / sizeof(from_lights[0]); k++)
+		if (gr[from_lights[k]] >= 0)
+			sp->cls[gr[from_lights[k]]] |= GC_OPAQUE;
+	classify(g, sp);
+	int32_t *src = rl_xmalloc(((size_t)g->surf->ncode + 2) * sizeof(int32_t));
+	ps_sources(g, src);
+	uint8_t ps_cls = 0;
+	for (const int32_t *r = src; *r >= 0; r++)
+		ps_cls |= sp->cls[*r];
+	for (uint32_t k = 0; k < g->nlights; k++) {
+		struct glsl_prog *lp = &g->lp[k];
+		const int32_t *lg = lp->prog->global_reg;
+		if (lg[SL_GLOBAL_PS] >= 0)
+			lp->cls[lg[SL_GLOBAL_PS]] = ps_cls;
+		static const int opaque[] = { SL_GLOBAL_L, SL_GLOBAL_E, SL_GLOBAL_TIME };
+		for (size_t j = 0; j < sizeof(opaque) / sizeof(opaque[0]); j++)
+			if (lg[opaque[j]] >= 0)
+				lp->cls[lg[opaque[j]]] |= GC_OPAQUE;
+		classify(g, lp);
+		find_needs(g, lp, NULL);
+		lp->moved_ps = lg[SL_GLOBAL_PS] >= 0 && lp->need[lg[SL_GLOBAL_PS]];
+		g->any_moved_ps = g->any_moved_ps || lp->moved_ps;
+	}
+	find_needs(g, sp, g->any_moved_ps ? src : NULL);
+	free(src);
+	g->cur = sp;
+}
+
+/* After @in: its copies moved along u and v, for the registers it writes that have them. */
+static void emit_moved(struct glsl_gen *g, const struct sl_insn *in)
+{
+	struct glsl_prog *p = g->cur;
+	if (!p->need || g->failed)
+		return;
+	bool w = in->dst >= 0 && p->need[in->dst];
+	for (uint32_t k = 0; in->op == SL_OP_CALL && k < in->nargs; k++)
+		w = w || (call_writes_arg(in, k) && p->need[in->args[k]]);
+	if (!w)
+		return;
+	if (replayable(p->prog, in)) {
+		for (int dir = 1; dir <= 2; dir++) {
+			g->moved = dir;
+			emit_insn(g, in);
+			g->moved = 0;
+		}
+		return;
+	}
+	/* A derivative: the moved blocks take the sample's value. */
+	for (int dir = 1; dir <= 2; dir++) {
+		if (in->dst >= 0 && p->need[in->dst])
+			sl_glsl_line(g, "%s = %s;", moved_name(g, p, in->dst, dir), p->name[in->dst]);
+		for (uint32_t k = 0; in->op == SL_OP_CALL && k < in->nargs; k++)
+			if (call_writes_arg(in, k) && p->need[in->args[k]])
+				sl_glsl_line(g, "%s = %s;", moved_name(g, p, in->args[k], dir),
+					     p->name[in->args[k]]);
+	}
+}
+
+int sl_glsl_shadow_site(struct glsl_gen *g, const struct sl_insn *in)
+{
+	struct glsl_prog *p = g->cur;
+	const struct sl_program *prog = p->prog;
+	if (!p->site)
+		return -1;
+	uint32_t pc = (uint32_t)(in - prog->code);
+	if (p->site[pc] >= 0)
+		return p->site[pc];
+	/* The map's name: a string parameter (through copies), or a constant. */
+	const char *param = NULL;
+	int32_t r = in->args[0];
+	for (int hop = 0; hop < 16 && r >= 0 && !param; hop++) {
+		for (uint32_t k = 0; k < prog->nparams && !param; k++)
+			if (prog->params[k].reg == r && prog->regs[r].type == SL_TYPE_STRING &&
+			    !prog->regs[r].arraylen)
+				param = prog->params[k].name;
+		r = p->copy_of[r];
+	}
+	const char *name = param ? NULL : sl_glsl_cstr(g, in->args[0]);
+	if (!param && !name) {
+		sl_glsl_error(g, in, "shadow map names must be string parameters or constant strings "
+			      "on the GPU");
+		return -1;
+	}
+	uint32_t k = (uint32_t)g->sites.len;
+	struct sl_glsl_shadow_site site = { p->light, param, name };
+	rl_vec_push(g->sites, site);
+	p->site[pc] = (int32_t)k;
+	struct rl_strbuf *u = &g->sec[GS_UNIFORMS];
+	if (k == 0)
+		rl_strbuf_puts(u, "uniform mat4 u_to_world;\n");
+	rl_strbuf_printf(u, "layout(binding = %u) uniform samplerBuffer u_shadow%u;\n",
+			 SL_GLSL_SHADOW_UNIT0 + k, k);
+	rl_strbuf_printf(u, "uniform int u_shadow%u_size[2];\n", k);
+	rl_strbuf_printf(u, "uniform mat4 u_shadow%u_to_camera;\n", k);
+	rl_strbuf_printf(u, "uniform mat4 u_shadow%u_to_ndc;\n", k);
+	rl_strbuf_printf(u, "uniform float u_shadow%u_bias;\n", k);
+	return (int)k;
+}
+
 /*
  * Warn about globals the kept code reads that are neither inputs nor
  * computed by kept code: they would be 0 (a slice that left out an input).
@@ -1586,8 +2028,15 @@ static void emit_main(struct glsl_gen *g, struct sl_glsl_layout *layout)
 		sl_glsl_line(g, "int rl_in = int(idx) * %u;", layout->in_stride);
 	for (uint32_t i = 0; i < s->ninputs; i++) {
 		layout->in_offset[i] = off;
-		load_input(g, s->inputs[i], off);
+		load_input(g, s->inputs[i], off, g->sp.name[s->inputs[i]]);
+		if (g->sp.need && g->sp.need[s->inputs[i]])
+			load_moved(g, s->inputs[i], layout->in_step_u[i], layout->in_step_v[i]);
 		off += (uint32_t)reg_floats(prog, s->inputs[i]);
+	}
+	if (layout->du_offset != NONE) {
+		rl_strbuf_puts(&g->sec[GS_GLOBALS], "float rl_du = 0.0;\nfloat rl_dv = 0.0;\n");
+		sl_glsl_line(g, "rl_du = texelFetch(u_in, rl_in + %u).x;", layout->du_offset);
+		sl_glsl_line(g, "rl_dv = texelFetch(u_in, rl_in + %u).x;", layout->dv_offset);
 	}
 	emit_range(g, prog->body_begin, prog->ncode);
 	off = 0;
@@ -1622,6 +2071,35 @@ static void fill_strings(struct glsl_gen *g, struct sl_glsl_layout *layout)
 	layout->nstrings = (uint32_t)n;
 }
 
+/* The shadow() sites, their strings in the same block as the array (layout->shadows owns it). */
+static void fill_sites(struct glsl_gen *g, struct sl_glsl_layout *layout)
+{
+	size_t n = g->sites.len, chars = 0;
+	if (!n)
+		return;
+	for (size_t i = 0; i < n; i++) {
+		const struct sl_glsl_shadow_site *st = &g->sites.data[i];
+		chars += (st->param ? strlen(st->param) + 1 : 0) + (st->name ? strlen(st->name) + 1 : 0);
+	}
+	char *block = rl_xmalloc(n * sizeof(struct sl_glsl_shadow_site) + chars + 1);
+	struct sl_glsl_shadow_site *tab = (struct sl_glsl_shadow_site *)(void *)block;
+	char *c = block + n * sizeof(struct sl_glsl_shadow_site);
+	for (size_t i = 0; i < n; i++) {
+		tab[i] = g->sites.data[i];
+		const char **fields[2] = { &tab[i].param, &tab[i].name };
+		for (int f = 0; f < 2; f++) {
+			if (!*fields[f])
+				continue;
+			size_t len = strlen(*fields[f]) + 1;
+			memcpy(c, *fields[f], len);
+			*fields[f] = c;
+			c += len;
+		}
+	}
+	layout->shadows = tab;
+	layout->nshadows = (uint32_t)n;
+}
+
 static const char prelude[] =
 	"#version 430 core\n"
 	"layout(local_size_x = 64) in;\n"
@@ -1650,6 +2128,7 @@ char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lig
 	g->cur_light = -1;
 	g->cur = &g->sp;
 	g->sp.prog = s->prog;
+	g->stencil = s->input_steps != NULL;
 	char *src = NULL;
 
 	if (!check_slice(g, s, lights, nlights))
@@ -1679,6 +2158,28 @@ char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lig
 	layout->out_offset = rl_xcalloc(s->noutputs + 1, sizeof(uint32_t));
 	for (uint32_t i = 0; i < s->ninputs; i++)
 		layout->in_stride += (uint32_t)reg_floats(s->prog, s->inputs[i]);
+	/* Steps after the plain inputs: per input its u step then its v step, then du, dv. */
+	layout->in_step_u = rl_xmalloc((s->ninputs + 1) * sizeof(uint32_t));
+	layout->in_step_v = rl_xmalloc((s->ninputs + 1) * sizeof(uint32_t));
+	layout->du_offset = layout->dv_offset = NONE;
+	bool steps = false;
+	for (uint32_t i = 0; i < s->ninputs; i++) {
+		layout->in_step_u[i] = layout->in_step_v[i] = NONE;
+		if (!s->input_steps || !s->input_steps[i])
+			continue;
+		uint32_t nf = (uint32_t)reg_floats(s->prog, s->inputs[i]);
+		layout->in_step_u[i] = layout->in_stride;
+		layout->in_step_v[i] = layout->in_stride + nf;
+		layout->in_stride += 2 * nf;
+		steps = true;
+	}
+	if (steps) {
+		layout->du_offset = layout->in_stride;
+		layout->dv_offset = layout->in_stride + 1;
+		layout->in_stride += 2;
+	}
+	if (g->stencil)
+		analyze_stencils(g);
 	for (uint32_t i = 0; i < s->noutputs; i++)
 		layout->out_stride += (uint32_t)reg_floats(s->prog, s->outputs[i]);
 
@@ -1711,6 +2212,7 @@ char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lig
 		goto out;
 	sl_glsl_emit_helpers(g);
 	fill_strings(g, layout);
+	fill_sites(g, layout);
 
 	struct rl_strbuf all = { 0 };
 	for (int k = 0; k < GS_COUNT; k++) {
@@ -1730,6 +2232,7 @@ out:
 	rl_vec_free(g->spaces);
 	rl_vec_free(g->space_on);
 	rl_vec_free(g->splines);
+	rl_vec_free(g->sites);
 	free(g->stack);
 	rl_arena_destroy(g->arena);
 	return src;
@@ -1742,5 +2245,8 @@ void sl_glsl_layout_finish(struct sl_glsl_layout *layout)
 	free(layout->in_offset);
 	free(layout->out_offset);
 	free((void *)layout->strings);
+	free(layout->in_step_u);
+	free(layout->in_step_v);
+	free(layout->shadows);
 	memset(layout, 0, sizeof(*layout));
 }

@@ -39,12 +39,19 @@ struct sl_slice {
 	 * (sl_exec_set_stencil): what they are computed from is evaluated again
 	 * on the inputs moved one step along u and along v, in the same
 	 * invocation. A light's Ps is the surface position it is called with.
+	 * A moved input is the input plus its step (one float add, as the
+	 * interpreter's moved blocks are made); the moved copies follow the
+	 * sample's control flow. The derivative of a value that depends on
+	 * per-sample data without steps (an input without them, a light's
+	 * result, a texture) is an error; one of a value the same for all
+	 * samples is 0. NULL: no derivatives (an error, as before) and shadow()
+	 * as texture() below.
 	 */
 	const uint8_t *input_steps;
 };
 
-/* A shadow() call of the generated code: which map it reads is chosen when
- * the kernel runs (see sl_glsl_emit). */
+/* A shadow() call of the generated code (with input_steps): which map it
+ * reads is chosen when the kernel runs (see sl_glsl_emit). */
 struct sl_glsl_shadow_site {
 	int light;                 /* the light (0 .. nlights - 1) whose code calls it; -1: the slice */
 	const char *param;         /* the string parameter of that shader naming the map, or NULL */
@@ -66,10 +73,13 @@ struct sl_glsl_layout {
 	uint32_t nstrings;
 	/* With input_steps: per input, the first float of its u step and of its
 	 * v step (UINT32_MAX for an input without steps); where du and dv are
-	 * (UINT32_MAX when no input has steps). */
+	 * (UINT32_MAX when no input has steps). The steps follow the plain
+	 * inputs, input by input (u step, then v step, each as many floats as
+	 * the input), then du and dv, the record's last two floats. */
 	uint32_t *in_step_u, *in_step_v;
 	uint32_t du_offset, dv_offset;
-	/* The shadow() call sites, in the order of their uniforms. */
+	/* The shadow() call sites, in the order of their uniforms (with
+	 * input_steps only; one block the layout owns). */
 	struct sl_glsl_shadow_site *shadows;
 	uint32_t nshadows;
 };
@@ -86,19 +96,25 @@ struct sl_glsl_layout {
  * set) plus the invocation index as gpu.h's gpu_dispatch() describes, which
  * the uniform int u_count bounds: a dispatch of n runs samples
  * [u_first, u_first + n).
- * shadow() site k reads the depth map bound as samplerBuffer "u_shadow<k>"
- * (texture unit SL_GLSL_SHADOW_UNIT0 + k; width * height depths,
- * row-major) with the uniforms ivec2 "u_shadow<k>_size" (0 x 0: no map,
- * the lookup gives what a missing file gives), mat4 "u_shadow<k>_to_camera"
+ * With input_steps, shadow() site k reads the depth map bound as
+ * samplerBuffer "u_shadow<k>" (texture unit SL_GLSL_SHADOW_UNIT0 + k;
+ * width * height depths, row-major) with the uniforms int
+ * "u_shadow<k>_size[2]" (width, height; 0 x 0: no map, the lookup gives
+ * what a missing file gives, the "fill" option), mat4 "u_shadow<k>_to_camera"
  * (world -> the map's camera), mat4 "u_shadow<k>_to_ndc" (world -> the map's
  * NDC) and float "u_shadow<k>_bias" (the map's own bias, used when the call
- * gives none); the uniform mat4 "u_to_world" takes current space to world.
- * The filter, its samples and their jitter are the renderer's
- * (render/texture.c reyes_tex_shadow), in the same arithmetic.
+ * gives none); the uniform mat4 "u_to_world" takes current space to world
+ * (gpu/shadowmap.h gpu_shadow_map_bind sets them all). The filter, its
+ * samples and their jitter are the renderer's (render/texture.c
+ * reyes_tex_shadow), in the same arithmetic. The constant empty name is the
+ * fill, with no site. texture() and environment() read no file: a name
+ * known only at run time gives the fill (a warning), a constant one is an
+ * error; without input_steps shadow() is treated the same way.
  * Every built-in the code uses is emitted with the interpreter's numerics.
  * Returns the source (free() it) and fills @layout (free with
  * sl_glsl_layout_finish), or NULL with "FILE:LINE:COL: error: ..." on @diag
- * for what the GPU cannot run (textures, derivatives of dynamic values...).
+ * for what the GPU cannot run (texture files, derivatives without
+ * stencils...).
  */
 char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lights,
 		   uint32_t nlights, struct sl_glsl_layout *layout, FILE *diag);

@@ -6,9 +6,21 @@
  * same 32-bit integer hash, bit for bit.
  *
  * What the GPU cannot do is an error at the call: derivatives (Du, Dv,
- * Deriv, area, calculatenormal, two-argument filterstep), random(), texture
- * files, string building (format, concat), host queries (attribute, option,
- * rendererinfo, depth). printf is dropped with a warning.
+ * Deriv, area, calculatenormal, two-argument filterstep) except on
+ * derivative stencils (slice->input_steps), random(), texture files but
+ * shadow maps on stencils, string building (format, concat), host queries
+ * (attribute, option, rendererinfo, depth). printf is dropped with a
+ * warning.
+ *
+ * On derivative stencils a derivative is the difference between a value
+ * and its copies moved one grid step along u and v (glsl.c), taken with the
+ * interpreter's arithmetic: Du(f) = (f_u - f) / du, and the changes over
+ * one step themselves (f_u - f) for filter regions, area() and filterstep()
+ * widths. shadow() is render/texture.c's reyes_tex_shadow: the corners in
+ * float, the transforms as sl_xform_point does them (double, rounded to
+ * float), the map's NDC and the sample grid in double, the same jitter hash.
+ * "precise" keeps the compiler from fusing multiplies and adds that the
+ * CPU rounds apart.
  */
 #include "glsl_impl.h"
 #include "mathlib.h"
@@ -538,6 +550,141 @@ static const char filterstep_glsl[] =
 	"\treturn rl_fstep(edge, mid - hw, mid + hw);\n"
 	"}\n";
 
+static const char deriv_glsl[] =
+	"float rl_dtof(double x) {\n"
+	"\tif (isnan(x)) return 0.0;\n"
+	"\tif (x > double(RL_FLT_MAX)) return RL_FLT_MAX;\n"
+	"\tif (x < -double(RL_FLT_MAX)) return -RL_FLT_MAX;\n"
+	"\treturn float(x);\n"
+	"}\n"
+	/* v + su du + sv dv: a corner of a filter region (exec_builtins.c tex_region). */
+	"vec3 rl_corner(vec3 v, vec3 du, vec3 dv, float su, float sv) {\n"
+	"\tprecise vec3 a = v + su * du;\n"
+	"\tprecise vec3 b = a + sv * dv;\n"
+	"\treturn rl_fin(b);\n"
+	"}\n"
+	"vec3 rl_pcross(vec3 a, vec3 b) {\n"
+	"\tprecise float x = a.y * b.z - a.z * b.y;\n"
+	"\tprecise float y = a.z * b.x - a.x * b.z;\n"
+	"\tprecise float z = a.x * b.y - a.y * b.x;\n"
+	"\treturn vec3(x, y, z);\n"
+	"}\n"
+	/* |u x v| with the length in double (mathlib.c sl_v3_length). */
+	"float rl_area(vec3 u, vec3 v) {\n"
+	"\tvec3 c = rl_pcross(u, v);\n"
+	"\tprecise double s = double(c.x) * double(c.x) + double(c.y) * double(c.y) +\n"
+	"\t\tdouble(c.z) * double(c.z);\n"
+	"\treturn rl_dtof(sqrt(s));\n"
+	"}\n"
+	/* filterstep(edge, s) over the box of s's changes along u and v. */
+	"float rl_fstep_d(float edge, float s, float du, float dv, float width) {\n"
+	"\tprecise float w = (abs(du) + abs(dv)) * width;\n"
+	"\tprecise float lo = s - 0.5 * w;\n"
+	"\tprecise float hi = s + 0.5 * w;\n"
+	"\treturn rl_fstep(edge, lo, hi);\n"
+	"}\n";
+
+/* render/texture.c: to_map, size_opt, clamp_region, reyes_tex_shadow, statement for statement. */
+static const char shadow_glsl[] =
+	"vec3 rl_dxpoint(mat4 m, vec3 p) {\n"
+	"\tprecise dvec4 o = double(p.x) * dvec4(m[0]) + double(p.y) * dvec4(m[1]) +\n"
+	"\t\tdouble(p.z) * dvec4(m[2]) + dvec4(m[3]);\n"
+	"\tdouble w = o.w;\n"
+	"\tif (w != 0.0LF && w != 1.0LF) o.xyz = o.xyz / w;\n"
+	"\treturn vec3(rl_dtof(o.x), rl_dtof(o.y), rl_dtof(o.z));\n"
+	"}\n"
+	"bool rl_dfinite(double x) { return !isnan(x) && !isinf(x); }\n"
+	"bool rl_to_map(mat4 tow, mat4 tocam, mat4 tondc, vec3 pc, out double s, out double t,\n"
+	"\t\tout double z) {\n"
+	"\tvec3 pw = rl_dxpoint(tow, pc);\n"
+	"\tvec3 pl = rl_dxpoint(tocam, pw);\n"
+	"\tz = double(pl.z);\n"
+	"\tprecise dvec4 h = double(pw.x) * dvec4(tondc[0]) + double(pw.y) * dvec4(tondc[1]) +\n"
+	"\t\tdouble(pw.z) * dvec4(tondc[2]) + dvec4(tondc[3]);\n"
+	"\ts = 0.0LF;\n"
+	"\tt = 0.0LF;\n"
+	"\tif (!(h.w > 1e-20LF) || !rl_dfinite(h.x) || !rl_dfinite(h.y)) return false;\n"
+	"\ts = h.x / h.w;\n"
+	"\tt = h.y / h.w;\n"
+	"\treturn rl_dfinite(s) && rl_dfinite(t) && rl_dfinite(z);\n"
+	"}\n"
+	"double rl_size_opt(float v) {\n"
+	"\tif (isnan(v) || isinf(v) || v <= 0.0) return 0.0LF;\n"
+	"\treturn double(v) < 1e6LF ? double(v) : 1e6LF;\n"
+	"}\n"
+	"double rl_clamp_region(double d) { return d < 1e6LF ? d : 1e6LF; }\n"
+	"float rl_fo0(float v) { return isnan(v) || isinf(v) ? 0.0 : v; }\n"
+	"float rl_shadow(samplerBuffer zmap, ivec2 size, mat4 tow, mat4 tocam, mat4 tondc,\n"
+	"\t\tfloat mapbias, vec3 p0, vec3 p1, vec3 p2, vec3 p3, bool hasc, vec3 center,\n"
+	"\t\tfloat swidth, float twidth, float sblur, float tblur, float samples, float bias,\n"
+	"\t\tfloat fill) {\n"
+	"\tif (size.x <= 0 || size.y <= 0) return fill;\n"
+	"\tfloat b = bias >= 0.0 && !isinf(bias) ? bias : mapbias;\n"
+	"\tdouble sw = rl_size_opt(swidth), tw = rl_size_opt(twidth);\n"
+	"\tdouble sb = rl_size_opt(sblur), tb = rl_size_opt(tblur);\n"
+	"\tdouble nsamp = isnan(samples) || isinf(samples) ? 1.0LF : double(samples);\n"
+	"\tnsamp = nsamp < 1.0LF ? 1.0LF : nsamp > 1024.0LF ? 1024.0LF : nsamp;\n"
+	"\tprecise double nm = nsamp - 1e-6LF;\n"
+	"\tint grid = int(ceil(sqrt(nm)));\n"
+	"\tif (grid < 1) grid = 1;\n"
+	"\tdouble smin = 0.0LF, smax = 0.0LF, tmin = 0.0LF, tmax = 0.0LF;\n"
+	"\tprecise double zsum = 0.0LF;\n"
+	"\tint nvalid = 0;\n"
+	"\tfor (int k = 0; k < 4; k++) {\n"
+	"\t\tvec3 p = k == 0 ? p0 : k == 1 ? p1 : k == 2 ? p2 : p3;\n"
+	"\t\tdouble s, t, z;\n"
+	"\t\tif (!rl_to_map(tow, tocam, tondc, vec3(rl_fo0(p.x), rl_fo0(p.y), rl_fo0(p.z)), s,\n"
+	"\t\t\t\tt, z))\n"
+	"\t\t\tcontinue;\n"
+	"\t\tif (nvalid == 0) {\n"
+	"\t\t\tsmin = smax = s;\n"
+	"\t\t\ttmin = tmax = t;\n"
+	"\t\t} else {\n"
+	"\t\t\tsmin = s < smin ? s : smin;\n"
+	"\t\t\tsmax = s > smax ? s : smax;\n"
+	"\t\t\ttmin = t < tmin ? t : tmin;\n"
+	"\t\t\ttmax = t > tmax ? t : tmax;\n"
+	"\t\t}\n"
+	"\t\tzsum += z;\n"
+	"\t\tnvalid++;\n"
+	"\t}\n"
+	"\tprecise double z = nvalid > 0 ? zsum / double(nvalid) : 0.0LF;\n"
+	"\tif (!(nvalid > 0 && z > 0.0LF)) return 0.0;\n"
+	"\tprecise double sc = 0.5LF * (smin + smax), tc = 0.5LF * (tmin + tmax);\n"
+	"\tprecise double ds = rl_clamp_region((smax - smin) * sw + sb);\n"
+	"\tprecise double dt = rl_clamp_region((tmax - tmin) * tw + tb);\n"
+	"\tint nu = ds > 0.0LF || dt > 0.0LF ? grid : 1;\n"
+	"\tuint seed;\n"
+	"\tif (hasc)\n"
+	"\t\tseed = rl_hmix(rl_hmix(floatBitsToUint(center.x)) ^\n"
+	"\t\t\trl_hmix(floatBitsToUint(center.y) + 0x9e3779b9u) ^\n"
+	"\t\t\trl_hmix(floatBitsToUint(center.z) + 0x7f4a7c15u));\n"
+	"\telse\n"
+	"\t\tseed = rl_hmix(rl_hmix(floatBitsToUint(float(sc))) ^\n"
+	"\t\t\trl_hmix(floatBitsToUint(float(tc)) + 0x9e3779b9u));\n"
+	"\tprecise double zb = z - double(b);\n"
+	"\tint shadowed = 0;\n"
+	"\tfor (int v = 0; v < nu; v++) {\n"
+	"\t\tfor (int u = 0; u < nu; u++) {\n"
+	"\t\t\tdouble ju = 0.5LF, jv = 0.5LF;\n"
+	"\t\t\tif (nu > 1) {\n"
+	"\t\t\t\tseed = rl_hmix(seed + 0x6d2b79f5u);\n"
+	"\t\t\t\tju = double(seed >> 8) * (1.0LF / 16777216.0LF);\n"
+	"\t\t\t\tseed = rl_hmix(seed + 0x6d2b79f5u);\n"
+	"\t\t\t\tjv = double(seed >> 8) * (1.0LF / 16777216.0LF);\n"
+	"\t\t\t}\n"
+	"\t\t\tprecise double s = sc + ((double(u) + ju) / double(nu) - 0.5LF) * ds;\n"
+	"\t\t\tprecise double t = tc + ((double(v) + jv) / double(nu) - 0.5LF) * dt;\n"
+	"\t\t\tif (!(s >= 0.0LF && s < 1.0LF && t >= 0.0LF && t < 1.0LF)) continue;\n"
+	"\t\t\tprecise double xs = s * double(size.x), ys = t * double(size.y);\n"
+	"\t\t\tint x = min(int(xs), size.x - 1), y = min(int(ys), size.y - 1);\n"
+	"\t\t\tfloat zm = texelFetch(zmap, y * size.x + x).x;\n"
+	"\t\t\tif (zm > 0.0 && zb > double(zm)) shadowed++;\n"
+	"\t\t}\n"
+	"\t}\n"
+	"\treturn float(double(shadowed) / double(nu * nu));\n"
+	"}\n";
+
 struct helper {
 	const char *text;
 	uint8_t deps[3];   /* helpers it calls (0: none; GH_CORE is always there) */
@@ -560,12 +707,15 @@ static const struct helper helpers[GH_COUNT] = {
 	[GH_COLOR] = { color_glsl, { 0 } },
 	[GH_SPLINE] = { spline_glsl, { 0 } },
 	[GH_FILTERSTEP] = { filterstep_glsl, { 0 } },
+	[GH_DERIV] = { deriv_glsl, { GH_FILTERSTEP } },
+	[GH_SHADOW] = { shadow_glsl, { GH_DERIV, GH_NOISE } },
 };
 
 /* Output order: every helper after the ones it calls. */
 static const uint8_t helper_order[GH_COUNT] = {
 	GH_CORE, GH_MATH, GH_VEC, GH_AIDX, GH_CIDX, GH_INVERSE, GH_MATDIV, GH_XFORM, GH_NOISE,
-	GH_GEOM, GH_FRESNEL, GH_SPECBRDF, GH_CONE, GH_COLOR, GH_SPLINE, GH_FILTERSTEP,
+	GH_GEOM, GH_FRESNEL, GH_SPECBRDF, GH_CONE, GH_COLOR, GH_SPLINE, GH_FILTERSTEP, GH_DERIV,
+	GH_SHADOW,
 };
 
 void sl_glsl_need(struct glsl_gen *g, enum glsl_helper h)
@@ -674,6 +824,117 @@ static void unsupported(struct glsl_gen *g, const struct sl_insn *in, const char
 		      why ? why : "");
 }
 
+/* ---- derivatives on stencils ---- */
+
+/* Can the derivatives of @r be taken here? Reports why not. */
+static bool deriv_operand(struct glsl_gen *g, const struct sl_insn *in, int32_t r)
+{
+	if (!g->stencil) {
+		sl_glsl_error(g, in, "derivatives of GPU-computed values are not supported (%s)",
+			      bi_name(in));
+		return false;
+	}
+	if (sl_glsl_class(g, r) & GC_OPAQUE) {
+		sl_glsl_error(g, in, "derivatives of GPU-computed values are not supported (%s): the "
+			      "value does not come from inputs with derivative steps", bi_name(in));
+		return false;
+	}
+	return true;
+}
+
+/* Component @c of the expression @e of register @r. */
+static const char *comp_of(struct glsl_gen *g, int32_t r, const char *e, int c)
+{
+	int nc = ncomp(g, r);
+	if (nc == 1)
+		return e;
+	if (nc == 16)
+		return SL_GLSL_FMT(g, "%s[%d][%d]", e, c / 4, c % 4);
+	return SL_GLSL_FMT(g, "%s[%d]", e, c);
+}
+
+/*
+ * The change of component @c of @r over one step along u (@dir 1) or v
+ * (2), as the interpreter's stencil difference: f moved - f, clamped.
+ */
+static const char *step_diff(struct glsl_gen *g, int32_t r, int c, int dir)
+{
+	if (!sl_glsl_class(g, r))
+		return "0.0";
+	return SL_GLSL_FMT(g, "rl_fin(%s - %s)", comp_of(g, r, sl_glsl_moved(g, r, 0, dir), c),
+			   comp_of(g, r, op(g, r, 0), c));
+}
+
+/* The same for the three components of a triple (floats broadcast). */
+static const char *step_diff3(struct glsl_gen *g, int32_t r, int dir)
+{
+	if (!sl_glsl_class(g, r))
+		return "vec3(0.0)";
+	return SL_GLSL_FMT(g, "rl_fin(%s - %s)", sl_glsl_moved(g, r, 3, dir), op(g, r, 3));
+}
+
+/* Du(f) or Dv(f) of component @c: the difference divided by the sample's step. */
+static const char *deriv_comp(struct glsl_gen *g, int32_t r, int c, int dir)
+{
+	if (!sl_glsl_class(g, r))
+		return "0.0";
+	return SL_GLSL_FMT(g, "rl_div(%s - %s, %s)", comp_of(g, r, sl_glsl_moved(g, r, 0, dir), c),
+			   comp_of(g, r, op(g, r, 0), c), dir == 1 ? "rl_du" : "rl_dv");
+}
+
+/* Du, Dv, Deriv, area, calculatenormal on derivative stencils. */
+static void call_deriv(struct glsl_gen *g, const struct sl_insn *in, int id)
+{
+	int want = id == SL_BI_DERIV ? 2 : 1;
+	if (!need_args(g, in, want))
+		return;
+	const int32_t *a = in->args;
+	for (int k = 0; k < want; k++)
+		if (!deriv_operand(g, in, a[k]))
+			return;
+	if (in->dst < 0)
+		return;
+	int nd = ncomp(g, in->dst);
+	if (id == SL_BI_AREA || id == SL_BI_CALCULATENORMAL) {
+		const char *e;
+		sl_glsl_need(g, GH_DERIV);
+		if (!sl_glsl_class(g, a[0]))
+			e = id == SL_BI_AREA ? "0.0" : "vec3(0.0)";
+		else if (id == SL_BI_AREA)
+			e = SL_GLSL_FMT(g, "rl_area(%s, %s)", step_diff3(g, a[0], 1),
+					step_diff3(g, a[0], 2));
+		else
+			e = SL_GLSL_FMT(g, "rl_fin(rl_pcross(rl_div(%s - %s, vec3(rl_du)), "
+					"rl_div(%s - %s, vec3(rl_dv))))", sl_glsl_moved(g, a[0], 3, 1),
+					op(g, a[0], 3), sl_glsl_moved(g, a[0], 3, 2), op(g, a[0], 3));
+		if (id == SL_BI_AREA)
+			set_dst(g, in, nd == 3 ? SL_GLSL_FMT(g, "vec3(%s)", e) : e);
+		else
+			set_dst(g, in, fit3(g, nd, e));
+		return;
+	}
+	int nc = nd > 3 ? 3 : nd;
+	if (nc != 1 && nc != 3) {
+		sl_glsl_error(g, in, "invalid program: %s() of a %d-component value", bi_name(in), nd);
+		return;
+	}
+	const char *e[3];
+	for (int c = 0; c < nc; c++) {
+		int ca = ncomp(g, a[0]) == 1 ? 0 : c;
+		if (id == SL_BI_DU || id == SL_BI_DV) {
+			e[c] = deriv_comp(g, a[0], ca, id == SL_BI_DU ? 1 : 2);
+			continue;
+		}
+		e[c] = SL_GLSL_FMT(g, "rl_fin(rl_div(%s, %s) + rl_div(%s, %s))",
+				   deriv_comp(g, a[0], ca, 1), deriv_comp(g, a[1], 0, 1),
+				   deriv_comp(g, a[0], ca, 2), deriv_comp(g, a[1], 0, 2));
+	}
+	if (nc == 1)
+		set_dst(g, in, e[0]);
+	else
+		set_dst(g, in, SL_GLSL_FMT(g, "vec3(%s, %s, %s)", e[0], e[1], e[2]));
+}
+
 /* ---- math ---- */
 
 static const char *math_fn(int id, int nargs)
@@ -762,7 +1023,7 @@ static void call_filterstep(struct glsl_gen *g, const struct sl_insn *in)
 	int nnum = 0;
 	while (nnum < in->nargs && !is_string(g, a[nnum]))
 		nnum++;
-	if (nnum < 3) {
+	if (nnum < 3 && !g->stencil) {
 		sl_glsl_error(g, in, "derivatives of GPU-computed values are not supported "
 			      "(filterstep() without a second value estimates one)");
 		return;
@@ -779,6 +1040,15 @@ static void call_filterstep(struct glsl_gen *g, const struct sl_insn *in)
 			width = SL_GLSL_FMT(g, "max(%s, 0.0)", op(g, a[k + 1], 1));
 		else if (strcmp(opt, "filter") != 0 && strcmp(opt, "twidth") != 0)
 			sl_glsl_warning(g, in, "filterstep: unknown option '%s'", opt);
+	}
+	if (nnum < 3) {
+		if (!deriv_operand(g, in, a[1]))
+			return;
+		sl_glsl_need(g, GH_DERIV);
+		set_dst(g, in, SL_GLSL_FMT(g, "rl_fstep_d(%s, %s, %s, %s, %s)", op(g, a[0], 1),
+					   op(g, a[1], 1), step_diff(g, a[1], 0, 1),
+					   step_diff(g, a[1], 0, 2), width));
+		return;
 	}
 	sl_glsl_need(g, GH_FILTERSTEP);
 	set_dst(g, in, SL_GLSL_FMT(g, "rl_filterstep(%s, %s, %s, %s)", op(g, a[0], 1),
@@ -1292,6 +1562,11 @@ static void call_lighting(struct glsl_gen *g, const struct sl_insn *in, int id)
 	const int32_t *a = in->args;
 	int32_t P = g->cur->prog->global_reg[SL_GLOBAL_P];
 	const char *Ps = P >= 0 ? g->cur->name[P] : "vec3(0.0)";
+	/* Lights that take derivatives of Ps get it moved along u and v too. */
+	if (g->any_moved_ps)
+		Ps = P >= 0 ? SL_GLSL_FMT(g, "%s, %s, %s", Ps, sl_glsl_moved(g, P, 3, 1),
+					  sl_glsl_moved(g, P, 3, 2))
+			    : "vec3(0.0), vec3(0.0), vec3(0.0)";
 	const char *e;
 	switch (id) {
 	case SL_BI_AMBIENT:
@@ -1332,15 +1607,16 @@ static const char *light_flag(struct glsl_gen *g, int k, const char *name)
 
 void sl_glsl_emit_lighting(struct glsl_gen *g, enum glsl_lighting w)
 {
-	static const char *const head[GL_COUNT] = {
-		"vec3 rl_ambient(vec3 Ps) {",
-		"vec3 rl_diffuse(vec3 Ps, vec3 N) {",
-		"vec3 rl_specular(vec3 Ps, vec3 N, vec3 V, float rough) {",
-		"vec3 rl_phong(vec3 Ps, vec3 N, vec3 V, float size) {",
+	static const char *const head[GL_COUNT][2] = {
+		{ "vec3 rl_ambient(vec3 Ps", ") {" },
+		{ "vec3 rl_diffuse(vec3 Ps", ", vec3 N) {" },
+		{ "vec3 rl_specular(vec3 Ps", ", vec3 N, vec3 V, float rough) {" },
+		{ "vec3 rl_phong(vec3 Ps", ", vec3 N, vec3 V, float size) {" },
 	};
 	g->out = &g->sec[GS_LIGHTING];
 	g->indent = 0;
-	sl_glsl_line(g, "%s", head[w]);
+	sl_glsl_line(g, "%s%s%s", head[w][0], g->any_moved_ps ? ", vec3 Psu, vec3 Psv" : "",
+		     head[w][1]);
 	g->indent++;
 	sl_glsl_line(g, "vec3 acc = vec3(0.0);");
 	if (w != GL_AMBIENT)
@@ -1348,7 +1624,7 @@ void sl_glsl_emit_lighting(struct glsl_gen *g, enum glsl_lighting w)
 	if (w == GL_PHONG)
 		sl_glsl_line(g, "vec3 R = rl_reflect(-rl_normalize(V), Nn);");
 	for (uint32_t k = 0; k < g->nlights; k++) {
-		sl_glsl_line(g, "light_%u(Ps);", k);
+		sl_glsl_line(g, g->lp[k].moved_ps ? "light_%u(Ps, Psu, Psv);" : "light_%u(Ps);", k);
 		if (w == GL_AMBIENT) {
 			if (g->lp[k].static_ambient)
 				sl_glsl_line(g, "acc += rl_Cl;");
@@ -1391,6 +1667,103 @@ static const char *fill_value(struct glsl_gen *g, const struct sl_insn *in, int 
 	return fill;
 }
 
+/* The value of option @r (its first component) as a float expression. */
+static const char *opt_value(struct glsl_gen *g, int32_t r)
+{
+	int nc = ncomp(g, r);
+	if (g->cur->prog->regs[r].arraylen)
+		return SL_GLSL_FMT(g, "%s[0]%s", op(g, r, 0), nc == 3 ? "[0]" : nc == 16 ? "[0][0]" : "");
+	return comp_of(g, r, op(g, r, 0), 0);
+}
+
+/*
+ * shadow(name, channel, P, options...) or (..., P1, P2, P3, P4, ...) on
+ * derivative stencils: a site of the layout, whose map is bound when the
+ * kernel runs (the fill when none is), filtered as reyes_tex_shadow filters.
+ * The corners around P are exec_builtins.c's tex_region on the stencil.
+ */
+static void call_shadow(struct glsl_gen *g, const struct sl_insn *in)
+{
+	const struct sl_program *prog = g->cur->prog;
+	const int32_t *a = in->args;
+	int ncoord = 0;
+	while (2 + ncoord < in->nargs && prog->regs[a[2 + ncoord]].type != SL_TYPE_STRING)
+		ncoord++;
+	if (ncoord < 1) {
+		sl_glsl_error(g, in, "shadow: missing direction");
+		return;
+	}
+	const char *c[4], *center = "vec3(0.0)", *hasc = "false";
+	if (ncoord >= 4) {
+		for (int k = 0; k < 4; k++)
+			c[k] = op(g, a[2 + k], 3);
+		ncoord = 4;
+	} else {
+		if (!deriv_operand(g, in, a[2]))
+			return;
+		static const char *const su[4] = { "-0.5", "0.5", "0.5", "-0.5" };
+		static const char *const sv[4] = { "-0.5", "-0.5", "0.5", "0.5" };
+		center = op(g, a[2], 3);
+		const char *du = step_diff3(g, a[2], 1), *dv = step_diff3(g, a[2], 2);
+		for (int k = 0; k < 4; k++)
+			c[k] = SL_GLSL_FMT(g, "rl_corner(%s, %s, %s, %s, %s)", center, du, dv, su[k],
+					   sv[k]);
+		hasc = "true";
+		ncoord = 1;
+	}
+	/* The options, as exec_builtins.c tex_options reads them. */
+	const char *sw = "1.0", *tw = "1.0", *sb = "0.0", *tb = "0.0", *samples = "16.0";
+	const char *bias = "(-1.0)", *fill = "0.0";
+	for (int k = 2 + ncoord; k < in->nargs; k += 2) {
+		const char *opt = prog->regs[a[k]].type == SL_TYPE_STRING ? sl_glsl_cstr(g, a[k]) : NULL;
+		if (prog->regs[a[k]].type != SL_TYPE_STRING || k + 1 >= in->nargs) {
+			sl_glsl_warning(g, in, "shadow: options must be \"name\", value pairs");
+			break;
+		}
+		if (!opt) {
+			sl_glsl_error(g, in, "shadow() options must be constant strings on the GPU");
+			return;
+		}
+		int32_t vr = a[k + 1];
+		if (prog->regs[vr].type == SL_TYPE_STRING) {
+			if (strcmp(opt, "filter") != 0)
+				sl_glsl_warning(g, in, "shadow: unknown option '%s'", opt);
+			continue;
+		}
+		const char *v = opt_value(g, vr);
+		if (!strcmp(opt, "blur"))
+			sb = tb = v;
+		else if (!strcmp(opt, "sblur"))
+			sb = v;
+		else if (!strcmp(opt, "tblur"))
+			tb = v;
+		else if (!strcmp(opt, "width"))
+			sw = tw = v;
+		else if (!strcmp(opt, "swidth"))
+			sw = v;
+		else if (!strcmp(opt, "twidth"))
+			tw = v;
+		else if (!strcmp(opt, "samples"))
+			samples = v;
+		else if (!strcmp(opt, "bias"))
+			bias = v;
+		else if (!strcmp(opt, "fill"))
+			fill = v;
+		else
+			sl_glsl_warning(g, in, "shadow: unknown option '%s'", opt);
+	}
+	int site = sl_glsl_shadow_site(g, in);
+	if (site < 0 || in->dst < 0)
+		return;
+	sl_glsl_need(g, GH_SHADOW);
+	const char *e = SL_GLSL_FMT(g, "rl_shadow(u_shadow%d, ivec2(u_shadow%d_size[0], "
+				    "u_shadow%d_size[1]), u_to_world, u_shadow%d_to_camera, "
+				    "u_shadow%d_to_ndc, u_shadow%d_bias, %s, %s, %s, %s, %s, %s, %s, %s, "
+				    "%s, %s, %s, %s, %s)", site, site, site, site, site, site, c[0], c[1],
+				    c[2], c[3], hasc, center, sw, tw, sb, tb, samples, bias, fill);
+	set_dst(g, in, ncomp(g, in->dst) == 3 ? SL_GLSL_FMT(g, "vec3(%s)", e) : e);
+}
+
 /*
  * texture / environment / shadow / textureinfo: only the empty name, the
  * "no map" default of texture parameters, gives what the interpreter gives
@@ -1401,6 +1774,10 @@ static void call_texture(struct glsl_gen *g, const struct sl_insn *in, int id)
 	if (!need_args(g, in, id == SL_BI_TEXTUREINFO ? 3 : 2))
 		return;
 	const char *name = sl_glsl_cstr(g, in->args[0]);
+	if (id == SL_BI_SHADOW && g->stencil && !(name && !*name)) {
+		call_shadow(g, in);
+		return;
+	}
 	if (name && *name) {
 		sl_glsl_error(g, in, "%s '%s' cannot be read on the GPU (texture files are not "
 			      "supported)", bi_name(in), name);
@@ -1567,8 +1944,7 @@ void sl_glsl_call(struct glsl_gen *g, const struct sl_insn *in)
 		break;
 	case SL_BI_DU: case SL_BI_DV: case SL_BI_DERIV: case SL_BI_AREA:
 	case SL_BI_CALCULATENORMAL:
-		sl_glsl_error(g, in, "derivatives of GPU-computed values are not supported (%s)",
-			      bi_name(in));
+		call_deriv(g, in, id);
 		break;
 	case SL_BI_AMBIENT: case SL_BI_DIFFUSE: case SL_BI_SPECULAR: case SL_BI_PHONG:
 		call_lighting(g, in, id);

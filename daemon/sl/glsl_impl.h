@@ -31,6 +31,8 @@ enum glsl_helper {
 	GH_COLOR,       /* ctransform */
 	GH_SPLINE,      /* spline bases */
 	GH_FILTERSTEP,
+	GH_DERIV,       /* derivative stencils: corners, area, normals, filterstep widths */
+	GH_SHADOW,      /* shadow(): the renderer's depth map filter */
 	GH_COUNT
 };
 
@@ -50,6 +52,15 @@ enum glsl_section {
 	GS_COUNT
 };
 
+/*
+ * What a value's derivatives can be taken from on derivative stencils
+ * (slice->input_steps): GC_STEP, it changes with inputs that have steps (its
+ * copies moved one step along u and v can be computed); GC_OPAQUE, it
+ * changes per sample in a way that cannot be followed (inputs without steps,
+ * lights, textures). Neither: it is the same for every sample.
+ */
+enum { GC_STEP = 1, GC_OPAQUE = 2 };
+
 /* Per emitted program (the surface slice, or one light): its names and analyses. */
 struct glsl_prog {
 	const struct sl_program *prog;
@@ -62,6 +73,13 @@ struct glsl_prog {
 	uint32_t *loopcont;      /* per LOOP: its LOOPCONT, or UINT32_MAX */
 	uint8_t *declared;       /* per instruction: its variables declared (bits) */
 	bool static_ambient;     /* a light without illuminate or solar */
+	/* Derivative stencils (NULL without input_steps). */
+	uint8_t *cls;            /* per register: GC_* bits */
+	uint8_t *need;           /* per register: kept with copies moved along u and v */
+	uint8_t *mdecl;          /* per register: moved copies declared (bit 1 u, bit 2 v) */
+	int32_t *copy_of;        /* per register: the one register a MOV copies into it, or -1 */
+	int32_t *site;           /* per instruction: its shadow() site, or -1 */
+	bool moved_ps;           /* a light called with Ps moved along u and v too */
 };
 
 struct glsl_gen {
@@ -90,6 +108,11 @@ struct glsl_gen {
 	int cur_light;                    /* the light an illuminance body is emitted for, or -1 */
 	int32_t *stack;                   /* constructs open around the code being emitted */
 	uint32_t nstack, maxstack;
+	/* Derivative stencils and shadow maps. */
+	bool stencil;                     /* the slice has input_steps */
+	int moved;                        /* emitting the copy moved along u (1) or v (2); 0 */
+	bool any_moved_ps;                /* some light takes Ps moved */
+	RL_VEC(struct sl_glsl_shadow_site) sites;
 };
 
 /** Report "FILE:LINE:COL: error: ..." at instruction @in of the current program. */
@@ -133,6 +156,17 @@ void sl_glsl_emit_helpers(struct glsl_gen *g);
 void sl_glsl_emit_spline(struct glsl_gen *g, int nvals, int ncomp);
 /** Append the lighting function @which over the lights. */
 void sl_glsl_emit_lighting(struct glsl_gen *g, enum glsl_lighting which);
+
+/** GC_* bits of register @r of the current program (0 without stencils). */
+int sl_glsl_class(const struct glsl_gen *g, int32_t r);
+/**
+ * Register @r of the current program moved one grid step along u (@dir 1)
+ * or v (2), as an expression of @want components (sl_glsl_op): its moved
+ * copy when it has one, else its own value (a value the same for all samples).
+ */
+const char *sl_glsl_moved(struct glsl_gen *g, int32_t r, int want, int dir);
+/** The site index of shadow() CALL @in of the current program, adding it (-1 on errors). */
+int sl_glsl_shadow_site(struct glsl_gen *g, const struct sl_insn *in);
 
 /** Floats per element of register @r (strings: 1, a token id). */
 int sl_glsl_ncomp(const struct sl_program *prog, int32_t r);

@@ -299,9 +299,14 @@ run "--set malformed" "$relight" preview --cpu --set 2.intensity "$work/edit.sho
 expect_status 2
 expect_stderr "--set needs LIGHT.PARAM=V"
 
-run "preview without --cpu" "$relight" preview "$work/r.shot.exr"
-expect_status 2
-expect_stderr "only --cpu"
+run "preview on the GPU" "$relight" preview -q -o "$work/r.gpu.exr" "$work/r.shot.exr"
+checks=$((checks + 1))
+if [ "$status" -ne 0 ] && ! grep -q "no GPU context" "$work/stderr"; then
+	fail "the GPU preview failed without saying there is no GPU context (status $status)"
+fi
+run "GPU preview of junk" "$relight" preview "$work/two.rib"
+expect_status 1
+expect_stderr "relight: error: "
 run "preview of junk" "$relight" preview --cpu "$work/two.rib"
 expect_status 1
 expect_no_crash

@@ -19,6 +19,7 @@
 #include "gpu.h"
 #include "exec.h"
 #include "lighthost.h"
+#include "mathlib.h"
 #include "sl.h"
 #include "test.h"
 
@@ -27,6 +28,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #define NPTS 256
 #define MAXL 12
@@ -1818,12 +1820,804 @@ static void test_slice(void)
 	sl_program_destroy(p);
 }
 
+/* ------------------------------------------------------------------------ */
+/* Derivative stencils and shadow maps                                       */
+
+/*
+ * The dynamic part of a specialized surface on derivative stencils, as a
+ * shot runs it: the caching program runs over a real nu x nv grid, each
+ * sample's record holds the cached values, the steps (sl_exec_reg_delta) of
+ * those the derivatives go through and the grid steps du, dv. The
+ * interpreter runs s->dynamic on stencils (sl_exec_set_stencil: the samples,
+ * then the samples moved along u and along v); the GPU runs the slice
+ * emitted with input_steps over the same records.
+ */
+struct reyes_texsys;
+
+struct stencil_run {
+	struct xc c;                /* the surface (defaults) and its light, 3 n points */
+	struct sl_spec *sp;
+	uint32_t nu, nv, n;
+	struct sl_slice slice;
+	struct sl_glsl_layout lay;
+	char *src;
+	float *rec;                 /* n GPU records (with steps) */
+	float *rec3;                /* 3 n records for the interpreter, same layout */
+	float *du, *dv;
+	float *cpu;                 /* Ci of the interpreter, n x 3 */
+	struct reyes_texsys *ts;    /* NULL: no texture system */
+};
+
+#if defined(__has_include)
+#if __has_include("texture.h") && __has_include("shadowmap.h")
+#define GLSL_TEST_SHADOW_MAPS 1
+#include "texture.h"
+#include "shadowmap.h"
+#endif
+#endif
+
+#ifdef GLSL_TEST_SHADOW_MAPS
+/* Samples (the first third of a stencil run) the renderer finds in full and in partial shadow. */
+static uint32_t shadow_full, shadow_partial;
+
+static bool st_shadow(void *user, const struct sl_tex_lookup *q)
+{
+	const struct sl_lighthost *lh = user;
+	bool ok = reyes_tex_shadow(lh->owner, q);
+	for (uint32_t i = 0; ok && i < q->n / 3; i++) {
+		if (q->mask && !q->mask[i])
+			continue;
+		shadow_full += q->out[i] == 1.0f;
+		shadow_partial += q->out[i] > 0.0f && q->out[i] < 1.0f;
+	}
+	return ok;
+}
+#endif
+
+/* The smooth test surface: a height field over [-1, 1]^2 at z around 3. */
+static void surface_point(float u, float v, float P[3], float N[3])
+{
+	float x = 2 * u - 1, y = 2 * v - 1;
+	P[0] = x;
+	P[1] = y;
+	P[2] = 3.0f + 0.4f * sinf(2.1f * x) * cosf(1.7f * y);
+	float dzx = 0.4f * 2.1f * cosf(2.1f * x) * cosf(1.7f * y);
+	float dzy = -0.4f * 1.7f * sinf(2.1f * x) * sinf(1.7f * y);
+	float l = sqrtf(dzx * dzx + dzy * dzy + 1);
+	N[0] = -dzx / l;
+	N[1] = -dzy / l;
+	N[2] = -1 / l;
+}
+
+/*
+ * Specialize @surf for @dyn (with cached parameters and the lights'
+ * derivatives), bake it over an @nu x @nv grid and run it on the
+ * interpreter's stencils with light @light. @cfg sets parameters on c; @ts
+ * (may be NULL) answers shadow().
+ */
+static bool stencil_setup(struct stencil_run *t, const char *name, struct sl_program *surf,
+			  struct sl_program *light, const char *const *dyn, size_t ndyn,
+			  uint32_t nu, uint32_t nv, void (*cfg)(struct xc *c), struct reyes_texsys *ts)
+{
+	memset(t, 0, sizeof(*t));
+	t->ts = ts;
+	t->nu = nu;
+	t->nv = nv;
+	t->n = nu * nv;
+	uint32_t n = t->n;
+	xc_init(&t->c, name, surf, 3 * n);
+	xc_add(&t->c, light);
+	if (cfg)
+		cfg(&t->c);
+	t->sp = sl_specialize_ex(surf, dyn, ndyn, SL_SPEC_CACHE_PARAMS | SL_SPEC_LIGHT_DERIVATIVES,
+				 stderr);
+	CHECK(t->sp && t->sp->needs_stencil);
+	if (!t->sp || !t->sp->needs_stencil)
+		return false;
+	t->slice = t->sp->slice;
+	t->slice.input_steps = t->sp->cached_deriv;
+	const struct sl_program *lights[1] = { light };
+	t->src = sl_glsl_emit(&t->slice, lights, 1, &t->lay, stderr);
+	CHECK(t->src != NULL);
+	if (!t->src)
+		return false;
+	check_valid(name, t->src);
+	const struct sl_glsl_layout *lay = &t->lay;
+	CHECK(lay->du_offset != UINT32_MAX && lay->dv_offset == lay->du_offset + 1 &&
+	      lay->in_stride == lay->dv_offset + 1);
+
+	/* The bake: the caching program over the grid. */
+	struct sl_exec *ce = sl_exec_create(t->sp->caching, n);
+	CHECK(ce && sl_exec_set_grid(ce, nu, nv));
+	if (!ce)
+		return false;
+	for (int g = 0; g < SL_GLOBAL_COUNT; g++) {
+		bool vary;
+		float *d = sl_exec_global(ce, (enum sl_global)g, &vary);
+		if (!d || computed_global(g))
+			continue;
+		uint32_t st = vary ? sl_exec_stride(ce) : 1;
+		for (uint32_t i = 0; i < (vary ? n : 1); i++) {
+			float u = (float)(i % nu) / (float)(nu - 1), v = (float)(i / nu) / (float)(nv - 1);
+			float P[3], N[3], val[3] = { 0, 0, 0 };
+			surface_point(u, v, P, N);
+			switch (g) {
+			case SL_GLOBAL_P: case SL_GLOBAL_I:
+				memcpy(val, P, sizeof(val));
+				break;
+			case SL_GLOBAL_N: case SL_GLOBAL_NG:
+				memcpy(val, N, sizeof(val));
+				break;
+			case SL_GLOBAL_S: case SL_GLOBAL_U:
+				val[0] = u;
+				break;
+			case SL_GLOBAL_T: case SL_GLOBAL_V:
+				val[0] = v;
+				break;
+			case SL_GLOBAL_DU:
+				val[0] = 1.0f / (float)(nu - 1);
+				break;
+			case SL_GLOBAL_DV:
+				val[0] = 1.0f / (float)(nv - 1);
+				break;
+			case SL_GLOBAL_CS:
+				val[0] = 0.9f, val[1] = 0.6f, val[2] = 0.4f;
+				break;
+			case SL_GLOBAL_OS:
+				val[0] = val[1] = val[2] = 1;
+				break;
+			default:
+				break;
+			}
+			int nc = sl_reg_ncomp(&t->sp->caching->regs[t->sp->caching->global_reg[g]]);
+			for (int k = 0; k < nc && k < 3; k++)
+				d[(size_t)k * st + i] = val[k];
+		}
+	}
+	struct sl_lighthost lh0;
+	sl_lighthost_init(&lh0, NULL, 0);
+	lh0.host.print = quiet_print;
+	lh0.space_names = space_names;
+	lh0.space_mats = (const float (*)[16])space_mats;
+	lh0.nspaces = 3;
+	CHECK(sl_exec_run(ce, &lh0.host));
+
+	/* The records: values, then steps and du, dv where the layout has them. */
+	uint32_t is = lay->in_stride;
+	t->rec = calloc((size_t)n * is, sizeof(float));
+	t->rec3 = calloc((size_t)3 * n * is, sizeof(float));
+	t->du = calloc(n, sizeof(float));
+	t->dv = calloc(n, sizeof(float));
+	float *tu = calloc(n, sizeof(float)), *tv = calloc(n, sizeof(float));
+	float gdu, gdv;
+	sl_exec_grid_steps(ce, &gdu, &gdv);
+	for (uint32_t i = 0; i < n; i++) {
+		t->du[i] = gdu;
+		t->dv[i] = gdv;
+		t->rec[(size_t)i * is + lay->du_offset] = gdu;
+		t->rec[(size_t)i * is + lay->dv_offset] = gdv;
+	}
+	for (uint32_t k = 0; k < t->sp->ncached; k++) {
+		int32_t r = t->sp->cached[k];
+		const struct sl_reg *rg = &surf->regs[r];
+		if (rg->type == SL_TYPE_STRING)
+			continue;
+		int nc = sl_reg_ncomp(rg) * (rg->arraylen ? rg->arraylen : 1);
+		const float *d = sl_exec_reg(ce, r);
+		uint32_t st = rg->varying ? sl_exec_stride(ce) : 1;
+		for (int q = 0; q < nc; q++) {
+			bool steps = t->sp->cached_deriv[k];
+			CHECK(steps == (lay->in_step_u[k] != UINT32_MAX));
+			if (steps)
+				CHECK(sl_exec_reg_delta(ce, r, q, tu, tv));
+			for (uint32_t i = 0; i < n; i++) {
+				float v = d[(size_t)q * st + (rg->varying ? i : 0)];
+				float *g = t->rec + (size_t)i * is;
+				g[lay->in_offset[k] + (uint32_t)q] = v;
+				float *b0 = t->rec3 + (size_t)i * is, *bu = t->rec3 + (size_t)(n + i) * is;
+				float *bv = t->rec3 + (size_t)(2 * n + i) * is;
+				b0[lay->in_offset[k] + (uint32_t)q] = v;
+				bu[lay->in_offset[k] + (uint32_t)q] = v + (steps ? tu[i] : 0.0f);
+				bv[lay->in_offset[k] + (uint32_t)q] = v + (steps ? tv[i] : 0.0f);
+				if (steps) {
+					g[lay->in_step_u[k] + (uint32_t)q] = tu[i];
+					g[lay->in_step_v[k] + (uint32_t)q] = tv[i];
+				}
+			}
+		}
+	}
+	free(tu);
+	free(tv);
+	sl_exec_destroy(ce);
+
+	/* The interpreter on stencils. */
+	struct sl_exec *x = sl_exec_create(t->sp->dynamic, 3 * n);
+	CHECK(x != NULL);
+	if (!x)
+		return false;
+	for (size_t k = 0; k < ndyn; k++) {
+		int pk = sl_program_find_param(surf, dyn[k]);
+		float v[3];
+		const struct sl_reg *rg = &surf->regs[surf->params[pk].reg];
+		memcpy(v, sl_exec_reg(t->c.ix[0], surf->params[pk].reg), sizeof(float) * 3);
+		CHECK(sl_exec_set_param(x, dyn[k], v, (uint32_t)sl_reg_ncomp(rg)));
+	}
+	CHECK(sl_spec_bind_cache(t->sp, x, 3 * n, t->rec3, is, lay->in_offset));
+	CHECK(sl_exec_set_stencil(x, n, t->du, t->dv));
+	struct sl_lighthost lh;
+	sl_lighthost_init(&lh, t->c.x + 1, 1);
+	lh.host.print = quiet_print;
+	lh.space_names = space_names;
+	lh.space_mats = (const float (*)[16])space_mats;
+	lh.nspaces = 3;
+	lh.light_shader_mats = (const float (*)[16])light_mats;
+#ifdef GLSL_TEST_SHADOW_MAPS
+	lh.owner = t->ts;
+	if (t->ts)
+		lh.host.shadow = st_shadow;
+#endif
+	bool ok = sl_exec_run(x, &lh.host);
+	CHECK(ok);
+	bool vary;
+	const float *ci = sl_exec_global(x, SL_GLOBAL_CI, &vary);
+	t->cpu = calloc((size_t)n * 3, sizeof(float));
+	for (uint32_t i = 0; ci && i < n; i++)
+		for (int q = 0; q < 3; q++)
+			t->cpu[(size_t)i * 3 + q] = ci[(size_t)q * (vary ? sl_exec_stride(x) : 1) +
+						       (vary ? i : 0)];
+	sl_exec_destroy(x);
+	return ok;
+}
+
+/* The defaults runs (for the uniforms) of the surface and its light. */
+static void stencil_defaults(struct stencil_run *t)
+{
+	for (int i = 0; i <= t->c.nl; i++) {
+		struct space_host sh = { .host = { .space = sh_space }, .shader = NULL };
+		sh.host.user = &sh;
+		sh.shader = i == 0 ? space_mats[0] : light_mats[i - 1];
+		CHECK(sl_exec_run(t->c.ix[i], &sh.host));
+	}
+}
+
+/*
+ * The GPU over the same records; @bind (may be NULL) binds shadow() sites.
+ * Fills @gpu (n x 3). Returns false when it could not run.
+ */
+static bool stencil_gpu(struct stencil_run *t, float *gpu,
+			bool (*bind)(struct stencil_run *t, struct gpu_program *gp,
+				     struct gpu_binding *b, uint32_t *nb, struct gpu_buffer *bin))
+{
+	struct gpu_program *gp = gpu_program(ctx, t->src, stderr);
+	CHECK(gp != NULL);
+	if (!gp)
+		return false;
+	const struct sl_program *surf = t->c.prog[0];
+	uint8_t *is_input = calloc(surf->nregs + 1, 1);
+	for (uint32_t i = 0; i < t->slice.ninputs; i++)
+		is_input[t->slice.inputs[i]] = 1;
+	set_param_uniforms(&t->c, 0, gp, &t->lay, is_input);
+	set_param_uniforms(&t->c, 1, gp, &t->lay, NULL);
+	free(is_input);
+	gpu_uniform_mat4(gp, "l0_shader", light_mats[0]);
+	for (int k = 0; k < 3; k++) {
+		char name[32];
+		snprintf(name, sizeof(name), "space_%s", space_names[k]);
+		gpu_uniform_mat4(gp, name, space_mats[k]);
+	}
+	uint32_t n = t->n, is = t->lay.in_stride, os = t->lay.out_stride;
+	struct gpu_buffer *bin = gpu_buffer_create(ctx, (size_t)n * is * sizeof(float), t->rec);
+	struct gpu_buffer *bout = gpu_buffer_create(ctx, (size_t)n * os * sizeof(float), NULL);
+	struct gpu_binding b[2 + 8] = { { 0, false, bin }, { 1, true, bout } };
+	uint32_t nb = 2;
+	bool ok = !bind || bind(t, gp, b, &nb, bin);
+	CHECK(ok);
+	float *out = calloc((size_t)n * os, sizeof(float));
+	ok = ok && gpu_dispatch(ctx, gp, b, nb, n) &&
+	     gpu_buffer_read(bout, 0, (size_t)n * os * sizeof(float), out);
+	CHECK(ok);
+	/* Ci is output 0 of a specialized slice (spec.h: Ci, Oi, outputs). */
+	int32_t ci = surf->global_reg[SL_GLOBAL_CI];
+	uint32_t k0 = 0;
+	while (k0 < t->slice.noutputs && t->slice.outputs[k0] != ci)
+		k0++;
+	CHECK(k0 < t->slice.noutputs);
+	for (uint32_t i = 0; ok && k0 < t->slice.noutputs && i < n; i++)
+		for (int q = 0; q < 3; q++)
+			gpu[(size_t)i * 3 + q] = out[(size_t)i * os + t->lay.out_offset[k0] + (uint32_t)q];
+	free(out);
+	gpu_buffer_destroy(bin);
+	gpu_buffer_destroy(bout);
+	return ok && k0 < t->slice.noutputs;
+}
+
+static void stencil_finish(struct stencil_run *t)
+{
+	free(t->src);
+	if (t->src)
+		sl_glsl_layout_finish(&t->lay);
+	sl_spec_destroy(t->sp);
+	free(t->rec);
+	free(t->rec3);
+	free(t->du);
+	free(t->dv);
+	free(t->cpu);
+	xc_free(&t->c);
+}
+
+/* Largest |gpu - cpu| / max(1, |cpu|) over Ci; counts samples beyond @tol in *nbad. */
+static double stencil_compare(const struct stencil_run *t, const float *gpu, double tol,
+			      uint32_t *nbad)
+{
+	double maxerr = 0;
+	*nbad = 0;
+	for (uint32_t i = 0; i < t->n; i++) {
+		bool bad = false;
+		for (int q = 0; q < 3; q++) {
+			float c = t->cpu[(size_t)i * 3 + q], g = gpu[(size_t)i * 3 + q];
+			double e = fabs((double)g - c) / fmax(1.0, fabs((double)c));
+			if (!(e <= maxerr))
+				maxerr = e;
+			if (!(e <= tol)) {
+				if (!bad && *nbad < 6)
+					fprintf(stderr, "%s: sample %u Ci[%d]: gpu %.9g cpu %.9g\n",
+						t->c.name, i, q, g, c);
+				bad = true;
+			}
+		}
+		*nbad += bad;
+	}
+	return maxerr;
+}
+
+static const char deriv_src[] =
+	"surface dstencil(float Kd = 0.8; float freq = 2.5) {\n"
+	"	point Q = P * freq;\n"
+	"	float f = sin(xcomp(Q)) * cos(ycomp(Q)) + 0.1 * zcomp(Q) * zcomp(Q);\n"
+	"	normal Nq = calculatenormal(Q);\n"
+	"	float a = area(Q);\n"
+	"	float w = filterstep(0.2, f);\n"
+	"	color d = color(Du(f), Dv(f), Deriv(f, xcomp(Q)));\n"
+	"	Ci = Kd * (0.1 * d + color(w, 50 * a, 0) +\n"
+	"		color(normalize(Nq)) * diffuse(faceforward(normalize(N), I)));\n"
+	"	Oi = Os;\n"
+	"}\n";
+
+static void aim_pointlight(struct xc *c)
+{
+	aim_light(c, 1, "pointlight");
+}
+
+/*
+ * Derivatives of values the GPU computes (Du, Dv, Deriv, area,
+ * calculatenormal, filterstep's width) on stencils: a whole surface as the
+ * slice, P an input with steps, against the interpreter running the same
+ * surface on stencils of the same samples. Within TOL.
+ */
+static void test_stencil_derivs(void)
+{
+	enum { NU = 24, NV = 20, NS = NU * NV };
+	struct sl_program *surf = compile("dstencil.sl", deriv_src);
+	struct sl_program *light = load("pointlight");
+	CHECK(surf && light);
+	if (!surf || !light || !ctx) {
+		sl_program_destroy(surf);
+		sl_program_destroy(light);
+		return;
+	}
+	struct stencil_run t;
+	memset(&t, 0, sizeof(t));
+	t.n = NS;
+	xc_init(&t.c, "stencil derivatives", surf, 3 * NS);
+	xc_add(&t.c, light);
+	aim_pointlight(&t.c);
+	xc_setf(&t.c, 0, "freq", 1.7f);
+	/* Samples of a grid; the moved blocks differ from the samples in P only. */
+	static float stepu[3 * NS], stepv[3 * NS];
+	t.du = calloc(NS, sizeof(float));
+	t.dv = calloc(NS, sizeof(float));
+	float hu = 1.0f / (NU - 1), hv = 1.0f / (NV - 1);
+	int32_t inputs[SL_GLOBAL_COUNT], outputs[1] = { surf->global_reg[SL_GLOBAL_CI] };
+	uint8_t steps[SL_GLOBAL_COUNT];
+	uint32_t nin = 0;
+	for (int g = 0; g < SL_GLOBAL_COUNT; g++) {
+		float *v = t.c.glob[g];
+		if (!v)
+			continue;
+		int nc = sl_reg_ncomp(&surf->regs[surf->global_reg[g]]);
+		steps[nin] = g == SL_GLOBAL_P;
+		inputs[nin++] = surf->global_reg[g];
+		for (uint32_t i = 0; i < NS; i++) {
+			float u = (float)(i % NU) * hu, w = (float)(i / NU) * hv, P[3], N[3], Pu[3],
+			      Pv[3];
+			surface_point(u, w, P, N);
+			surface_point(u + hu, w, Pu, N);
+			surface_point(u, w + hv, Pv, N);
+			surface_point(u, w, P, N);
+			t.du[i] = hu;
+			t.dv[i] = hv;
+			for (int q = 0; q < nc && q < 3; q++) {
+				float *b = v + (size_t)q * 3 * NS;
+				if (g == SL_GLOBAL_P || g == SL_GLOBAL_I)
+					b[i] = P[q];
+				else if (g == SL_GLOBAL_N)
+					b[i] = N[q];
+				stepu[(size_t)q * NS + i] = Pu[q] - P[q];
+				stepv[(size_t)q * NS + i] = Pv[q] - P[q];
+				bool moved = g == SL_GLOBAL_P;
+				b[NS + i] = moved ? b[i] + stepu[(size_t)q * NS + i] : b[i];
+				b[2 * NS + i] = moved ? b[i] + stepv[(size_t)q * NS + i] : b[i];
+			}
+		}
+	}
+	t.slice = (struct sl_slice){ surf, NULL, inputs, nin, outputs, 1, steps };
+	const struct sl_program *lights[1] = { light };
+	t.src = sl_glsl_emit(&t.slice, lights, 1, &t.lay, stderr);
+	CHECK(t.src != NULL);
+	if (t.src) {
+		check_valid("stencil derivatives", t.src);
+		CHECK(strstr(t.src, "rl_du = texelFetch(u_in") && strstr(t.src, "rl_area(") &&
+		      strstr(t.src, "rl_fstep_d(") && strstr(t.src, "rl_pcross("));
+		CHECK(t.lay.nshadows == 0 && t.lay.du_offset != UINT32_MAX);
+		uint32_t is = t.lay.in_stride;
+		t.rec = calloc((size_t)NS * is, sizeof(float));
+		for (uint32_t j = 0; j < nin; j++) {
+			int g = surf->regs[inputs[j]].global;
+			int nc = sl_reg_ncomp(&surf->regs[inputs[j]]);
+			CHECK((t.lay.in_step_u[j] != UINT32_MAX) == (steps[j] != 0));
+			for (uint32_t i = 0; i < NS; i++)
+				for (int q = 0; q < nc; q++) {
+					float *r = t.rec + (size_t)i * is;
+					r[t.lay.in_offset[j] + (uint32_t)q] = t.c.glob[g][(size_t)q * 3 * NS + i];
+					if (steps[j]) {
+						r[t.lay.in_step_u[j] + (uint32_t)q] = stepu[(size_t)q * NS + i];
+						r[t.lay.in_step_v[j] + (uint32_t)q] = stepv[(size_t)q * NS + i];
+					}
+				}
+		}
+		for (uint32_t i = 0; i < NS; i++) {
+			t.rec[(size_t)i * is + t.lay.du_offset] = t.du[i];
+			t.rec[(size_t)i * is + t.lay.dv_offset] = t.dv[i];
+		}
+		CHECK(sl_exec_set_stencil(t.c.x[0], NS, t.du, t.dv));
+		CHECK(xc_cpu(&t.c));
+		bool vary;
+		const float *ci = sl_exec_global(t.c.x[0], SL_GLOBAL_CI, &vary);
+		t.cpu = calloc((size_t)NS * 3, sizeof(float));
+		for (uint32_t i = 0; ci && i < NS; i++)
+			for (int q = 0; q < 3; q++)
+				t.cpu[(size_t)i * 3 + q] =
+					ci[(size_t)q * (vary ? sl_exec_stride(t.c.x[0]) : 1) + (vary ? i : 0)];
+		float *gpu = calloc((size_t)NS * 3, sizeof(float));
+		if (stencil_gpu(&t, gpu, NULL)) {
+			uint32_t nbad;
+			double e = stencil_compare(&t, gpu, TOL, &nbad);
+			CHECK(e <= TOL);
+			/* The derivatives are there: Du(f) and Dv(f) are far from 0 somewhere. */
+			double big = 0;
+			for (uint32_t i = 0; i < NS; i++)
+				big = fmax(big, fabs(t.cpu[i * 3]) + fabs(t.cpu[i * 3 + 1]));
+			CHECK(big > 0.5);
+			printf("%-44s %u samples, max diff %.2e (tol %.0e)\n", "stencil derivatives", NS,
+			       e, TOL);
+		}
+		free(gpu);
+	}
+	stencil_finish(&t);
+	sl_program_destroy(surf);
+	sl_program_destroy(light);
+}
+
+static void aim_nomap(struct xc *c)
+{
+	aim_light(c, 1, "shadowspot");
+	xc_setf(c, 1, "coneangle", 1.4f);
+	xc_sets(c, 1, "shadowname", "relight-no-such-map.shd");
+}
+
+static bool bind_nomap(struct stencil_run *t, struct gpu_program *gp, struct gpu_binding *b,
+		       uint32_t *nb, struct gpu_buffer *bin)
+{
+	if (t->lay.nshadows != 1)
+		return false;
+	bool ok = gpu_uniform_int(gp, "u_shadow0_size[0]", 0) &&
+		  gpu_uniform_int(gp, "u_shadow0_size[1]", 0);
+	b[(*nb)++] = (struct gpu_binding){ SL_GLSL_SHADOW_UNIT0, false, bin };
+	return ok;
+}
+
+/*
+ * The shot's path: plastic specialized with the lights' derivatives, baked
+ * over a grid, shadowspot's shadow() on stencils of the cached P. Its map is
+ * missing on both sides (the fill).
+ */
+static void test_stencil_specialized(void)
+{
+	struct sl_program *surf = load("plastic");
+	struct sl_program *light = load("shadowspot");
+	CHECK(surf && light);
+	struct stencil_run t;
+	memset(&t, 0, sizeof(t));
+	if (surf && light && ctx &&
+	    stencil_setup(&t, "plastic + shadowspot, stencils", surf, light, NULL, 0, 16, 12,
+			  aim_nomap, NULL)) {
+		CHECK(t.lay.nshadows == 1);
+		stencil_defaults(&t);
+		float *gpu = calloc((size_t)t.n * 3, sizeof(float));
+		if (stencil_gpu(&t, gpu, bind_nomap)) {
+			uint32_t nbad;
+			double e = stencil_compare(&t, gpu, TOL, &nbad);
+			CHECK(e <= TOL);
+			printf("%-44s %u samples, max diff %.2e (tol %.0e)\n", t.c.name, t.n, e, TOL);
+		}
+		free(gpu);
+	}
+	stencil_finish(&t);
+	sl_program_destroy(surf);
+	sl_program_destroy(light);
+}
+
+/* shadowspot's shadow() becomes a site naming its parameter; errors stay clear. */
+static void test_shadow_sites(void)
+{
+	struct sl_program *surf = load("plastic");
+	struct sl_program *light = load("shadowspot");
+	CHECK(surf && light);
+	if (!surf || !light)
+		return;
+	struct sl_spec *sp = sl_specialize_ex(surf, NULL, 0, SL_SPEC_CACHE_PARAMS |
+					      SL_SPEC_LIGHT_DERIVATIVES, stderr);
+	CHECK(sp && sp->needs_stencil);
+	if (sp) {
+		struct sl_slice s = sp->slice;
+		s.input_steps = sp->cached_deriv;
+		const struct sl_program *lights[2] = { light, light };
+		struct sl_glsl_layout lay;
+		char *src = sl_glsl_emit(&s, lights, 2, &lay, stderr);
+		CHECK(src != NULL);
+		if (src) {
+			CHECK(lay.nshadows == 2);
+			for (uint32_t k = 0; k < lay.nshadows && k < 2; k++) {
+				CHECK(lay.shadows[k].light == (int)k);
+				CHECK_STR(lay.shadows[k].param, "shadowname");
+				CHECK(lay.shadows[k].name == NULL);
+			}
+			CHECK(strstr(src, "layout(binding = 2) uniform samplerBuffer u_shadow0;") &&
+			      strstr(src, "layout(binding = 3) uniform samplerBuffer u_shadow1;") &&
+			      strstr(src, "uniform int u_shadow1_size[2];") &&
+			      strstr(src, "uniform mat4 u_to_world;"));
+			check_valid("shadow sites", src);
+			free(src);
+			sl_glsl_layout_finish(&lay);
+		}
+		/* Without input_steps: as before, the fill and no site. */
+		s.input_steps = NULL;
+		src = sl_glsl_emit(&s, lights, 1, &lay, NULL);
+		CHECK(src && lay.nshadows == 0 && !strstr(src, "u_shadow0"));
+		free(src);
+		sl_glsl_layout_finish(&lay);
+		sl_spec_destroy(sp);
+	}
+	/* A constant name is a site too; a name built at run time is an error. */
+	struct sl_program *cs = compile("cshadow.sl", "surface cs() {\n"
+					"  Ci = shadow(\"key.shd\", P, \"samples\", 4);\n}\n");
+	CHECK(cs != NULL);
+	if (cs) {
+		int32_t in[1] = { cs->global_reg[SL_GLOBAL_P] }, out[1] = {
+			cs->global_reg[SL_GLOBAL_CI] };
+		uint8_t steps[1] = { 1 };
+		struct sl_slice s = { cs, NULL, in, 1, out, 1, steps };
+		struct sl_glsl_layout lay;
+		char *src = sl_glsl_emit(&s, NULL, 0, &lay, stderr);
+		CHECK(src && lay.nshadows == 1 && lay.shadows[0].light == -1 &&
+		      !lay.shadows[0].param && lay.shadows[0].name &&
+		      !strcmp(lay.shadows[0].name, "key.shd"));
+		CHECK(src && lay.in_stride == 3 + 3 + 3 + 2 && lay.in_step_u[0] == 3 &&
+		      lay.in_step_v[0] == 6 && lay.du_offset == 9 && lay.dv_offset == 10);
+		if (src)
+			check_valid("constant shadow site", src);
+		free(src);
+		sl_glsl_layout_finish(&lay);
+		/* P without steps: its derivatives cannot be taken. */
+		steps[0] = 0;
+		char *buf = NULL;
+		size_t len = 0;
+		FILE *diag = open_memstream(&buf, &len);
+		src = sl_glsl_emit(&s, NULL, 0, &lay, diag);
+		fclose(diag);
+		CHECK(src == NULL);
+		CHECK(buf && strstr(buf, "cshadow.sl:2:8: error: derivatives of GPU-computed values "
+				    "are not supported (shadow)"));
+		free(buf);
+		free(src);
+		sl_program_destroy(cs);
+	}
+	expect_error("surface e() {\n  string n = format(\"%d.shd\", 1);\n"
+		     "  Ci = shadow(n, P);\n}\n", NULL, "format() is not supported on the GPU");
+	sl_program_destroy(surf);
+	sl_program_destroy(light);
+}
+
+/* A shadow() site with no map bound (size 0 x 0) gives the fill, as a missing file does. */
+static void test_shadow_fill(void)
+{
+	struct sl_program *surf = compile("fill.sl", "surface fill(string map = \"none.shd\") {\n"
+					  "  Ci = color shadow(map, P, \"fill\", 0.375) + s;\n}\n");
+	CHECK(surf != NULL);
+	if (!surf || !ctx) {
+		sl_program_destroy(surf);
+		return;
+	}
+	int32_t in[2] = { surf->global_reg[SL_GLOBAL_P], surf->global_reg[SL_GLOBAL_S] };
+	int32_t out[1] = { surf->global_reg[SL_GLOBAL_CI] };
+	uint8_t steps[2] = { 1, 0 };
+	struct sl_slice s = { surf, NULL, in, 2, out, 1, steps };
+	struct sl_glsl_layout lay;
+	char *src = sl_glsl_emit(&s, NULL, 0, &lay, stderr);
+	CHECK(src && lay.nshadows == 1 && lay.shadows[0].param &&
+	      !strcmp(lay.shadows[0].param, "map"));
+	struct gpu_program *gp = src ? gpu_program(ctx, src, stderr) : NULL;
+	CHECK(gp != NULL);
+	if (gp) {
+		enum { N = 100 };
+		uint32_t is = lay.in_stride;
+		float *rec = calloc((size_t)N * is, sizeof(float)), res[N * 3];
+		for (uint32_t i = 0; i < N; i++) {
+			float *r = rec + (size_t)i * is;
+			r[lay.in_offset[0]] = (float)i * 0.01f;
+			r[lay.in_offset[0] + 1] = 0.5f;
+			r[lay.in_offset[0] + 2] = 3;
+			r[lay.in_offset[1]] = (float)i * 0.001f;
+			r[lay.in_step_u[0]] = 0.01f;
+			r[lay.in_step_v[0] + 1] = 0.01f;
+			r[lay.du_offset] = r[lay.dv_offset] = 0.1f;
+		}
+		struct gpu_buffer *bin = gpu_buffer_create(ctx, (size_t)N * is * sizeof(float), rec);
+		struct gpu_buffer *bout = gpu_buffer_create(ctx, sizeof(res), NULL);
+		CHECK(gpu_uniform_int(gp, "u_shadow0_size[0]", 0));
+		CHECK(gpu_uniform_int(gp, "u_shadow0_size[1]", 0));
+		struct gpu_binding b[3] = { { 0, false, bin }, { 1, true, bout },
+					    { SL_GLSL_SHADOW_UNIT0, false, bin } };
+		CHECK(gpu_dispatch(ctx, gp, b, 3, N));
+		CHECK(gpu_buffer_read(bout, 0, sizeof(res), res));
+		double maxerr = 0;
+		for (uint32_t i = 0; i < N; i++)
+			for (int q = 0; q < 3; q++)
+				maxerr = fmax(maxerr, fabs(res[i * 3 + q] - (0.375 + i * 0.001f)));
+		CHECK(maxerr <= 1e-6);
+		free(rec);
+		gpu_buffer_destroy(bin);
+		gpu_buffer_destroy(bout);
+	}
+	free(src);
+	sl_glsl_layout_finish(&lay);
+	sl_program_destroy(surf);
+}
+
+#ifdef GLSL_TEST_SHADOW_MAPS
+#define MAP_NAME "relight_test_glsl_shadow.exr"
+#define MAP_W 64
+#define MAP_H 48
+
+static float current_to_world[16];
+static struct gpu_shadow_map *test_map;
+
+/*
+ * A depth map seen from the viewing camera itself (the map's camera space
+ * is current space, with an arbitrary world between): the left part of the
+ * image holds an occluder at depth 2, with a step edge down the middle and
+ * a notch, the rest is empty.
+ */
+static bool write_test_map(const char *path)
+{
+	float world_to_current[16], proj[16] = { 0 };
+	rigid(current_to_world, 0.3f, -1, 0.5f, 0.8f, 1.5f, -2, 0.5f, 1.0f);
+	if (!sl_m44_inverse(world_to_current, current_to_world))
+		return false;
+	/* s = 0.5 + 0.4 x / z, t = 0.5 - 0.4 y / z, row vectors. */
+	proj[0] = 0.4f;
+	proj[5] = -0.4f;
+	proj[8] = 0.5f;
+	proj[9] = 0.5f;
+	proj[11] = 1;
+	static const char *const zname[] = { "Z" };
+	struct reyes_image im;
+	if (!reyes_image_init(&im, MAP_W, MAP_H, 1, zname))
+		return false;
+	for (uint32_t y = 0; y < MAP_H; y++)
+		for (uint32_t x = 0; x < MAP_W; x++) {
+			bool occ = x < MAP_W / 2 || (y > MAP_H / 3 && y < MAP_H / 2 && x < 3 * MAP_W / 4);
+			im.data[y * MAP_W + x] = occ ? 2.0f + 0.01f * (float)(x % 7) : 0.0f;
+		}
+	im.has_matrices = true;
+	memcpy(im.world_to_camera, world_to_current, sizeof(im.world_to_camera));
+	sl_m44_mul(im.world_to_ndc, world_to_current, proj);
+	bool ok = reyes_image_write_exr(path, &im, false, stderr);
+	reyes_image_finish(&im);
+	return ok;
+}
+
+static void aim_shadowspot(struct xc *c)
+{
+	aim_light(c, 1, "shadowspot");
+	xc_setf(c, 1, "coneangle", 1.4f);
+	xc_setf(c, 1, "samples", 16);
+	xc_setf(c, 1, "blur", 0.02f);
+	xc_sets(c, 1, "shadowname", MAP_NAME);
+}
+
+static bool bind_test_map(struct stencil_run *t, struct gpu_program *gp, struct gpu_binding *b,
+			  uint32_t *nb, struct gpu_buffer *bin)
+{
+	(void)bin;
+	if (t->lay.nshadows != 1)
+		return false;
+	return gpu_shadow_map_bind(ctx, gp, 0, test_map, current_to_world, &b[(*nb)++]);
+}
+
+/*
+ * shadowspot with a real map over plastic, on stencils: the GPU's shadow()
+ * against reyes_tex_shadow through the interpreter, every sample within TOL.
+ */
+static void test_shadow_map(void)
+{
+	char dir[] = "/tmp/relight-glsl-XXXXXX";
+	CHECK(mkdtemp(dir) != NULL);
+	char path[128];
+	snprintf(path, sizeof(path), "%s/%s", dir, MAP_NAME);
+	CHECK(write_test_map(path));
+	struct reyes_texsys *ts = reyes_texsys_create(dir, current_to_world, stderr);
+	struct sl_program *surf = load("plastic");
+	struct sl_program *light = load("shadowspot");
+	CHECK(ts && surf && light);
+	struct stencil_run t;
+	memset(&t, 0, sizeof(t));
+	shadow_full = shadow_partial = 0;
+	if (ts && surf && light &&
+	    stencil_setup(&t, "shadowspot + plastic", surf, light, NULL, 0, 32, 24, aim_shadowspot,
+			  ts)) {
+		CHECK(t.lay.nshadows == 1 && t.lay.shadows[0].light == 0);
+		char err[256];
+		test_map = gpu_shadow_map_load(ctx, ts, MAP_NAME, err, sizeof(err));
+		CHECK(test_map != NULL);
+		if (!test_map)
+			fprintf(stderr, "%s\n", err);
+		uint32_t w = 0, h = 0;
+		gpu_shadow_map_size(test_map, &w, &h);
+		CHECK(w == MAP_W && h == MAP_H && gpu_shadow_map_bytes(test_map) == MAP_W * MAP_H * 4);
+		stencil_defaults(&t);
+		float *gpu = calloc((size_t)t.n * 3, sizeof(float));
+		if (test_map && stencil_gpu(&t, gpu, bind_test_map)) {
+			uint32_t nbad;
+			double e = stencil_compare(&t, gpu, TOL, &nbad);
+			CHECK(e <= TOL);
+			CHECK(nbad == 0);
+			/* The map matters: samples in full shadow and on the edge's penumbra. */
+			CHECK(shadow_full > t.n / 10 && shadow_partial > 10);
+			printf("%-44s %u samples (lookups: %u in full shadow, %u partly), max diff %.2e "
+			       "(tol %.0e), %u beyond\n", "shadowspot + plastic, shadow map", t.n,
+			       shadow_full, shadow_partial, e, TOL, nbad);
+		}
+		free(gpu);
+		gpu_shadow_map_destroy(test_map);
+		test_map = NULL;
+	}
+	stencil_finish(&t);
+	sl_program_destroy(surf);
+	sl_program_destroy(light);
+	reyes_texsys_destroy(ts);
+	unlink(path);
+	rmdir(dir);
+}
+#endif
+
 int main(void)
 {
 	init_spaces();
 	/* What needs no GPU: diagnostics, layouts, validation. */
 	RUN(test_errors);
 	RUN(test_layout);
+	RUN(test_shadow_sites);
 	char err[256] = "";
 	ctx = gpu_create(err, sizeof(err));
 	if (!ctx) {
@@ -1850,6 +2644,15 @@ int main(void)
 	RUN(test_library_surfaces);
 	RUN(test_specialized_library);
 	RUN(test_uberlight_modes);
+	RUN(test_stencil_derivs);
+	RUN(test_stencil_specialized);
+	RUN(test_shadow_fill);
+#ifdef GLSL_TEST_SHADOW_MAPS
+	RUN(test_shadow_map);
+#else
+	printf("*** the shadow map cross-check needs test_glsl linked with the renderer and the "
+	       "GPU runtime (libruntime_dep): not built ***\n");
+#endif
 	RUN(test_benchmark);
 	gpu_destroy(ctx);
 	return test_finish();
