@@ -1,0 +1,327 @@
+/*
+ * The GPU runtime's speed, with its error: a 960x540 street of spheres
+ * (about half a million shading samples) baked twice, lit by 32 lights and
+ * by 1, and the same edit of the same spot light on both.
+ *
+ *   bench_runtime [--json] PATH/TO/relight [WORKDIR]
+ *
+ * For each shot: loading, the first frame with every light (full), then a
+ * run of edits of light 1's intensity, each refined level by level as an
+ * interactive session sees it: the median time of each level and of the
+ * whole refinement, the entries resolved and the samples shaded. The first
+ * edit after the full frame also takes light 1 out of the light cache
+ * (shading it once more), so it is reported apart; the edits after it are
+ * what a lighter dragging a slider gets.
+ *
+ * Beside them: the shading rate of the kernels alone (gpu_shot_profile:
+ * samples per second, and float operations per second counted on the
+ * interpreter) against the device's arithmetic rate (gpu_arith_rate), and
+ * each level's error against the final level and the final level's error
+ * against `relight render` of the RIB edited the same way, in percent of
+ * the 8-bit range after sRGB (mean and max).
+ *
+ * Targets on llvmpipe (issue: the GPU runtime): coarsest level <= 10 ms and
+ * final level <= 100 ms after a one-light edit; 32 lights <= 1.5x one light
+ * at every level; kernels >= half the arithmetic rate. The figures are
+ * printed, not asserted: machines here are noisy.
+ */
+#include "gpu.h"
+#include "microbench.h"
+#include "png.h"
+#include "runtime.h"
+#include "texture.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+#define EDITS 9
+#define LEVELS GPU_SHOT_LEVELS
+
+static int cmp_double(const void *a, const void *b)
+{
+	double x = *(const double *)a, y = *(const double *)b;
+	return x < y ? -1 : x > y;
+}
+
+static double median(double *v, int n)
+{
+	qsort(v, (size_t)n, sizeof(double), cmp_double);
+	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* The scene: a ground, 8 x 4 spheres of three surface shaders, @nlights lights. */
+static void write_scene(const char *path, int nlights, float spot_intensity)
+{
+	FILE *f = fopen(path, "w");
+	if (!f)
+		return;
+	fprintf(f, "Format 960 540 1\nPixelSamples 2 2\nShadingRate 1\n"
+		"Projection \"perspective\" \"fov\" 40\n"
+		"Display \"street.exr\" \"file\" \"rgba\"\n"
+		"Translate 0 -1.2 9\nRotate -12 1 0 0\nWorldBegin\n");
+	fprintf(f, "  LightSource \"spotlight\" 1 \"intensity\" %g \"from\" [1 6 2] \"to\" [0 0 5]"
+		" \"coneangle\" 0.6 \"conedeltaangle\" 0.1\n", (double)spot_intensity);
+	for (int i = 2; i <= nlights; i++) {
+		double a = 2.0 * 3.14159265 * i / nlights;
+		if (i == 2)
+			fprintf(f, "  LightSource \"ambientlight\" 2 \"intensity\" 0.03\n");
+		else if (i == 3)
+			fprintf(f, "  LightSource \"distantlight\" 3 \"intensity\" 0.3 \"from\" [0 1 0]"
+				" \"to\" [0.3 0 0.4]\n");
+		else
+			fprintf(f, "  LightSource \"pointlight\" %d \"intensity\" 0.6 \"from\" [%.3f %.3f"
+				" %.3f] \"lightcolor\" [%.2f %.2f %.2f]\n", i, 6 * cos(a), 1.5 + i % 3,
+				5 + 6 * sin(a), 0.6 + 0.4 * (i % 2), 0.7, 0.6 + 0.4 * (i % 3 == 0));
+	}
+	fprintf(f, "  AttributeBegin\n    Surface \"matte\"\n    Color [0.6 0.6 0.55]\n"
+		"    Polygon \"P\" [-12 0 -4  -12 0 20  12 0 20  12 0 -4]\n  AttributeEnd\n");
+	static const char *const surf[3] = { "plastic\" \"roughness\" 0.12",
+					     "metal\" \"roughness\" 0.2", "matte\"" };
+	for (int z = 0; z < 4; z++)
+		for (int x = 0; x < 8; x++)
+			fprintf(f, "  AttributeBegin\n    Surface \"%s\n    Color [%.2f %.2f %.2f]\n"
+				"    Translate %.2f 0.5 %.2f\n    Sphere 0.5 -0.5 0.5 360\n"
+				"  AttributeEnd\n", surf[(x + z) % 3], 0.3 + 0.1 * (x % 5),
+				0.3 + 0.15 * (z % 3), 0.4 + 0.07 * ((x + z) % 4), -4.2 + 1.2 * x,
+				1.5 + 2.2 * z);
+	fprintf(f, "WorldEnd\n");
+	fclose(f);
+}
+
+static double now_ms(void)
+{
+	struct timespec t;
+	clock_gettime(CLOCK_MONOTONIC, &t);
+	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+
+/* Mean and max of |srgb(a) - srgb(b)| in percent of the range, over RGB. */
+static void image_error(const float *a, const float *b, size_t pixels, double *mean, double *max)
+{
+	double sum = 0.0, m = 0.0;
+	for (size_t i = 0; i < pixels; i++)
+		for (int c = 0; c < 3; c++) {
+			double d = fabs((double)reyes_srgb_encode(a[i * 4 + c]) -
+					(double)reyes_srgb_encode(b[i * 4 + c]));
+			sum += d;
+			m = d > m ? d : m;
+		}
+	*mean = 100.0 * sum / (3.0 * (double)pixels);
+	*max = 100.0 * m;
+}
+
+struct result {
+	int nlights;
+	double load_ms, full_ms, first_edit_ms;
+	double level_ms[LEVELS], total_ms;
+	uint64_t entries[LEVELS], shaded[LEVELS], samples;
+	double err_mean[LEVELS], err_max[LEVELS];
+	double render_mean, render_max;
+	struct gpu_shot_profile prof;
+	size_t bytes;
+	bool ok;
+};
+
+static bool run_shot(struct gpu_ctx *ctx, const char *relight, const char *dir, int nlights,
+		     struct result *r)
+{
+	memset(r, 0, sizeof(*r));
+	r->nlights = nlights;
+	char cmd[4096], rib[1024], shot[1024];
+	snprintf(rib, sizeof(rib), "%s/street%d.rib", dir, nlights);
+	snprintf(shot, sizeof(shot), "%s/street%d.shot.exr", dir, nlights);
+	write_scene(rib, nlights, 40.0f);
+	struct stat st;
+	if (stat(shot, &st) != 0) {
+		fprintf(stderr, "bench_runtime: baking %s\n", rib);
+		snprintf(cmd, sizeof(cmd), "cd %s && %s bake -q -o %s %s", dir, relight, shot, rib);
+		if (system(cmd) != 0)
+			return false;
+	}
+	double t0 = now_ms();
+	struct gpu_shot_opts o = { .diag = stderr };
+	struct gpu_shot *s = gpu_shot_open(ctx, shot, &o);
+	if (!s)
+		return false;
+	r->load_ms = now_ms() - t0;
+	r->samples = gpu_shot_samples(s);
+	r->bytes = gpu_shot_bytes(s);
+	struct gpu_shot_stats stt;
+	bool ok = gpu_shot_render(s, GPU_SHOT_FINAL, &stt);
+	r->full_ms = stt.ms;
+	char err[512];
+	double lv[LEVELS][EDITS], tot[EDITS];
+	float v = 40.0f;
+	for (int e = -1; ok && e < EDITS; e++) {
+		v = 40.0f + 3.0f * (float)(e + 2);
+		ok = gpu_shot_set(s, "1", "intensity", &v, 1, err, sizeof(err));
+		double sum = 0.0;
+		for (int L = 0; ok && L < LEVELS; L++) {
+			ok = gpu_shot_render(s, L, &stt);
+			sum += stt.ms;
+			if (e >= 0) {
+				lv[L][e] = stt.ms;
+				r->entries[L] = stt.entries;
+				r->shaded[L] = stt.shaded;
+			}
+		}
+		if (e < 0)
+			r->first_edit_ms = sum;
+		else
+			tot[e] = sum;
+	}
+	for (int L = 0; ok && L < LEVELS; L++)
+		r->level_ms[L] = median(lv[L], EDITS);
+	if (ok)
+		r->total_ms = median(tot, EDITS);
+	/* errors: each level against the final level, the final level against the renderer */
+	uint32_t W = gpu_shot_width(s), H = gpu_shot_height(s);
+	size_t px = (size_t)W * H;
+	float *img[LEVELS];
+	for (int L = 0; L < LEVELS; L++) {
+		img[L] = malloc(px * 4 * sizeof(float));
+		ok = ok && img[L] && gpu_shot_read_rgba(s, L, img[L]);
+	}
+	for (int L = 0; ok && L < LEVELS; L++)
+		image_error(img[L], img[LEVELS - 1], px, &r->err_mean[L], &r->err_max[L]);
+	if (ok) {
+		char edited[1024], ref[1024];
+		snprintf(edited, sizeof(edited), "%s/street%d.edited.rib", dir, nlights);
+		snprintf(ref, sizeof(ref), "%s/street%d.edited.exr", dir, nlights);
+		write_scene(edited, nlights, v);
+		snprintf(cmd, sizeof(cmd), "cd %s && %s render -q -o %s %s", dir, relight, ref,
+			 edited);
+		struct reyes_image im;
+		if (system(cmd) == 0 && reyes_image_read_exr(ref, &im, stderr)) {
+			/* the file's channels in RGBA order */
+			int ch[4] = { -1, -1, -1, -1 };
+			static const char *const names[4] = { "R", "G", "B", "A" };
+			for (uint32_t c = 0; c < im.nchannels; c++)
+				for (int k = 0; k < 4; k++)
+					if (im.channel_names[c] && !strcmp(im.channel_names[c], names[k]))
+						ch[k] = (int)c;
+			if (im.width == W && im.height == H && ch[0] >= 0 && ch[1] >= 0 && ch[2] >= 0) {
+				float *ref_rgba = malloc(px * 4 * sizeof(float));
+				for (size_t i = 0; ref_rgba && i < px; i++)
+					for (int k = 0; k < 4; k++)
+						ref_rgba[i * 4 + k] =
+							ch[k] >= 0 ? im.data[i * im.nchannels + (size_t)ch[k]]
+								   : 1.0f;
+				if (ref_rgba)
+					image_error(img[LEVELS - 1], ref_rgba, px, &r->render_mean,
+						    &r->render_max);
+				free(ref_rgba);
+			}
+			reyes_image_finish(&im);
+		} else {
+			r->render_mean = r->render_max = NAN;
+		}
+	}
+	for (int L = 0; L < LEVELS; L++)
+		free(img[L]);
+	ok = ok && gpu_shot_profile(s, "1", &r->prof, err, sizeof(err));
+	if (!ok)
+		fprintf(stderr, "bench_runtime: %s\n", err);
+	gpu_shot_close(s);
+	r->ok = ok;
+	return ok;
+}
+
+int main(int argc, char **argv)
+{
+	int a = 1;
+	bool json = a < argc && !strcmp(argv[a], "--json");
+	a += json;
+	if (a >= argc) {
+		fprintf(stderr, "usage: bench_runtime [--json] PATH/TO/relight [WORKDIR]\n");
+		return 2;
+	}
+	char relight[2048], cwd[1024];
+	if (argv[a][0] == '/')
+		snprintf(relight, sizeof(relight), "%s", argv[a]);
+	else
+		snprintf(relight, sizeof(relight), "%s/%s", getcwd(cwd, sizeof(cwd)) ? cwd : ".",
+			 argv[a]);
+	char tmp[] = "/tmp/relight-bench-runtime-XXXXXX";
+	const char *dir = a + 1 < argc ? argv[a + 1] : mkdtemp(tmp);
+	if (!dir)
+		return 1;
+	mkdir(dir, 0755);
+	char err[512];
+	struct gpu_ctx *ctx = gpu_create(err, sizeof(err));
+	if (!ctx) {
+		printf("SKIP: no OpenGL 4.3 context: %s\n", err);
+		return 77;
+	}
+	struct gpu_arith_rate rate;
+	bool ok = gpu_arith_rate(ctx, 5, 100.0, &rate);
+	struct result r[2];
+	ok = ok && run_shot(ctx, relight, dir, 1, &r[0]) && run_shot(ctx, relight, dir, 32, &r[1]);
+	if (!ok) {
+		fprintf(stderr, "bench_runtime: failed\n");
+		gpu_destroy(ctx);
+		return 1;
+	}
+	if (json) {
+		printf("{\"device\": \"%s\", \"arith_flops\": %.4g, \"shots\": [", gpu_renderer(ctx),
+		       rate.flops);
+		for (int i = 0; i < 2; i++) {
+			const struct result *x = &r[i];
+			printf("%s{\"lights\": %d, \"samples\": %llu, \"gpu_bytes\": %zu, \"load_ms\": %.1f, "
+			       "\"full_ms\": %.2f, \"first_edit_ms\": %.2f, \"edit_ms\": %.2f, "
+			       "\"render_mean_pct\": %.4f, \"render_max_pct\": %.4f, "
+			       "\"kernel_ms\": %.3f, \"kernel_samples\": %llu, \"flops_per_sample\": %.1f, "
+			       "\"kernel_flops\": %.4g, \"levels\": [", i ? ", " : "", x->nlights,
+			       (unsigned long long)x->samples, x->bytes, x->load_ms, x->full_ms,
+			       x->first_edit_ms, x->total_ms, x->render_mean, x->render_max,
+			       x->prof.kernel_ms, (unsigned long long)x->prof.samples,
+			       x->prof.flops_per_sample, x->prof.flops);
+			for (int L = 0; L < LEVELS; L++)
+				printf("%s{\"level\": %d, \"ms\": %.3f, \"entries\": %llu, \"shaded\": %llu, "
+				       "\"mean_pct\": %.4f, \"max_pct\": %.4f}", L ? ", " : "", L,
+				       x->level_ms[L], (unsigned long long)x->entries[L],
+				       (unsigned long long)x->shaded[L], x->err_mean[L], x->err_max[L]);
+			printf("]}");
+		}
+		printf("]}\n");
+	} else {
+		printf("bench_runtime on %s; arithmetic rate %.1f GFLOP/s (gpu_arith_rate)\n\n",
+		       gpu_renderer(ctx), rate.flops * 1e-9);
+		for (int i = 0; i < 2; i++) {
+			const struct result *x = &r[i];
+			printf("%d light%s: %llu samples, %.1f MiB on the GPU, loaded in %.0f ms, every "
+			       "light %.1f ms; first edit (light 1 leaves the cache) %.1f ms\n",
+			       x->nlights, x->nlights > 1 ? "s" : "", (unsigned long long)x->samples,
+			       (double)x->bytes / 1048576.0, x->load_ms, x->full_ms, x->first_edit_ms);
+			printf("  %-6s %10s %10s %10s %10s %16s\n", "level", "ms", "cumul ms",
+			       "entries", "shaded", "error vs final");
+			double cum = 0.0;
+			for (int L = 0; L < LEVELS; L++) {
+				cum += x->level_ms[L];
+				printf("  %-6d %10.2f %10.2f %10llu %10llu   %5.3f / %5.2f %%\n", L,
+				       x->level_ms[L], cum, (unsigned long long)x->entries[L],
+				       (unsigned long long)x->shaded[L], x->err_mean[L],
+				       x->err_max[L]);
+			}
+			printf("  final level against relight render of the edited RIB: mean %.4f %%, "
+			       "max %.4f %%\n", x->render_mean, x->render_max);
+			printf("  kernels alone: %llu samples in %.2f ms = %.1f M samples/s; %.0f "
+			       "flops/sample = %.1f GFLOP/s = %.2f of the arithmetic rate\n\n",
+			       (unsigned long long)x->prof.samples, x->prof.kernel_ms,
+			       (double)x->prof.samples / (x->prof.kernel_ms * 1e3),
+			       x->prof.flops_per_sample, x->prof.flops * 1e-9,
+			       x->prof.flops / rate.flops);
+		}
+		printf("32 lights against 1, per level:");
+		for (int L = 0; L < LEVELS; L++)
+			printf(" %.2fx", r[1].level_ms[L] / r[0].level_ms[L]);
+		printf("; whole refinement %.2fx\n", r[1].total_ms / r[0].total_ms);
+	}
+	gpu_destroy(ctx);
+	return 0;
+}
