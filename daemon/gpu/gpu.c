@@ -72,6 +72,7 @@ struct gpu_buffer {
 	struct gpu_buffer *prev, *next;  /* every live buffer of the context */
 	GLuint name;
 	GLuint texture;  /* its R32F buffer texture, made on first use as a samplerBuffer */
+	GLuint texture4; /* the same as RGBA32F texels */
 	size_t bytes;
 };
 
@@ -502,6 +503,8 @@ static void buffer_free(struct gpu_buffer *b, bool current)
 	if (current) {
 		if (b->texture)
 			glDeleteTextures(1, &b->texture);
+		if (b->texture4)
+			glDeleteTextures(1, &b->texture4);
 		glDeleteBuffers(1, &b->name);
 	}
 	free(b);
@@ -1207,18 +1210,20 @@ static bool bind(struct gpu_ctx *ctx, const struct gpu_binding *bd, uint32_t i)
 		       ctx->max_texture_units);
 		return false;
 	}
-	if (b->bytes / 4 > (size_t)ctx->max_texels) {
+	size_t texel = bd->rgba ? 16 : 4;
+	if (b->bytes / texel > (size_t)ctx->max_texels) {
 		rl_log(RL_LOG_ERROR, "gpu_dispatch: %zu texels at texture unit %u exceed the buffer "
-		       "texture limit of %d", b->bytes / 4, bd->unit, ctx->max_texels);
+		       "texture limit of %d", b->bytes / texel, bd->unit, ctx->max_texels);
 		return false;
 	}
-	if (!b->texture) {
-		glCreateTextures(GL_TEXTURE_BUFFER, 1, &b->texture);
-		glTextureBuffer(b->texture, GL_R32F, b->name);
-		if (!b->texture || !gl_check("gpu_dispatch: buffer texture"))
+	GLuint *tex = bd->rgba ? &b->texture4 : &b->texture;
+	if (!*tex) {
+		glCreateTextures(GL_TEXTURE_BUFFER, 1, tex);
+		glTextureBuffer(*tex, bd->rgba ? GL_RGBA32F : GL_R32F, b->name);
+		if (!*tex || !gl_check("gpu_dispatch: buffer texture"))
 			return false;
 	}
-	glBindTextureUnit(bd->unit, b->texture);
+	glBindTextureUnit(bd->unit, *tex);
 	return true;
 }
 

@@ -74,6 +74,7 @@ struct gpu_binding {
 	uint32_t unit;             /* texture unit / SSBO binding point */
 	bool ssbo;                 /* else a samplerBuffer of R32F texels */
 	struct gpu_buffer *buffer;
+	bool rgba;                 /* a samplerBuffer of RGBA32F texels (4 floats each) */
 };
 
 /**

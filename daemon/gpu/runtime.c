@@ -421,7 +421,7 @@ static bool bind_shadows(struct gpu_shot *s, const struct kernel *k, const struc
 {
 	for (uint32_t i = 0; i < k->layout.nshadows; i++) {
 		const struct gpu_shadow_map *m = L && L->maps ? L->maps[i] : NULL;
-		b[*nb].buffer = s->zero;
+		b[*nb] = (struct gpu_binding){ 0, false, s->zero, false };
 		if (!gpu_shadow_map_bind(s->ctx, k->prog, i, m, s->c2w, &b[*nb]))
 			return fail(s, "cannot bind the shadow map of a kernel");
 		b[*nb].unit = SL_GLSL_SHADOW_UNIT0 + i;
@@ -451,7 +451,7 @@ static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, 
 		gpu_uniform_mat4(k->prog, "space_world", s->w2c);
 		struct gpu_binding b[2 + 64];
 		uint32_t nb = 0;
-		b[nb++] = (struct gpu_binding){ 0, false, sf->records };
+		b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 		b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
 		if (!bind_shadows(s, k, L, b, &nb))
 			return false;
@@ -714,6 +714,17 @@ static bool make_kernel(struct gpu_shot *s, struct surface *sf, const struct sl_
 {
 	struct sl_slice slice = sf->spec->slice;
 	slice.input_steps = steps;
+	/* the colour alone: the opacity comes with the pixels, output
+	 * parameters reach no image */
+	int32_t ci = sf->prog->global_reg[SL_GLOBAL_CI];
+	for (uint32_t i = 0; i < slice.noutputs; i++)
+		if (slice.outputs[i] == ci) {
+			slice.outputs = &slice.outputs[i];
+			slice.noutputs = 1;
+			break;
+		}
+	if (slice.noutputs != 1 || slice.outputs[0] != ci)
+		return fail(s, "surface '%s' sets no colour (Ci)", sf->name);
 	const struct sl_program *lights[1] = { light };
 	k->glsl = sl_glsl_emit(&slice, lights, light ? 1 : 0, &k->layout, s->diag);
 	if (!k->glsl)
@@ -936,8 +947,7 @@ static bool load_surface(struct gpu_shot *s, const struct shot_file *f, uint32_t
 			nowned++;
 		ok = col[lay->du_offset] && col[lay->dv_offset];
 	}
-	for (uint32_t c = 0; ok && c < stride; c++)
-		ok = col[c] != NULL;
+	/* floats no channel fills pad the record to whole texels: 0 */
 	free(off);
 	if (!ok)
 		fail(s, "the table '%s' does not hold what shader '%s' caches (bake again)", table,
@@ -959,7 +969,7 @@ static bool load_surface(struct gpu_shot *s, const struct shot_file *f, uint32_t
 			float *rec = rl_xmalloc((hi - lo) * stride * sizeof(float));
 			for (uint64_t r = lo; r < hi; r++)
 				for (uint32_t c = 0; c < stride; c++) {
-					float v = col[c][perm[r]];
+					float v = col[c] ? col[c][perm[r]] : 0.0f;
 					rec[(r - lo) * stride + c] = isfinite(v) ? v : 0.0f;
 				}
 			ok = gpu_buffer_write(sf->records, lo * stride * sizeof(float),
@@ -1070,7 +1080,7 @@ static bool warm_up(struct gpu_shot *s)
 			struct kernel *kk = k < s->nlshaders ? &sf->lk[k] : &sf->base;
 			struct gpu_binding b[2 + 64];
 			uint32_t nb = 0;
-			b[nb++] = (struct gpu_binding){ 0, false, sf->records };
+			b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 			b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
 			if (!bind_shadows(s, kk, NULL, b, &nb))
 				return false;
@@ -1664,23 +1674,40 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 		gpu_uniform_int(k->prog, "u_first", 0);
 		struct gpu_binding b[2 + 64];
 		uint32_t nb = 0;
-		b[nb++] = (struct gpu_binding){ 0, false, sf->records };
+		b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 		b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
 		if (!bind_shadows(s, k, L, b, &nb))
 			return false;
-		double best = 1e30;
-		for (int r = 0; r < 3; r++) {
+		double best = 1e30, base = 1e30;
+		for (int r = 0; r < 6; r++) {
+			struct kernel *kk = r % 2 ? &sf->base : k;
+			struct gpu_binding *bb = b;
+			struct gpu_binding b0[2 + 64];
+			uint32_t n0 = 0;
+			if (kk == &sf->base) {
+				b0[n0++] = (struct gpu_binding){ 0, false, sf->records, true };
+				b0[n0++] = (struct gpu_binding){ 1, true, s->scratch };
+				if (!bind_shadows(s, kk, NULL, b0, &n0))
+					return false;
+				gpu_uniform_int(kk->prog, "u_first", 0);
+				bb = b0;
+			}
 			if (!gpu_finish(s->ctx))
 				return false;
 			double t0 = now_ms();
-			if (!gpu_dispatch(s->ctx, k->prog, b, nb, (uint32_t)sf->nrows) ||
+			if (!gpu_dispatch(s->ctx, kk->prog, bb, kk == k ? nb : n0,
+					  (uint32_t)sf->nrows) ||
 			    !gpu_finish(s->ctx)) {
 				errorf(err, errlen, "running the kernel of '%s' failed", sf->name);
 				return false;
 			}
 			double t = now_ms() - t0;
-			best = t < best ? t : best;
+			if (kk == k)
+				best = t < best ? t : best;
+			else
+				base = t < base ? t : base;
 		}
+		out->base_ms += base;
 		double per = count_flops(s, sf, L);
 		if (per < 0) {
 			errorf(err, errlen, "counting the operations of '%s' failed", sf->name);

@@ -141,6 +141,8 @@ bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px);
 struct gpu_shot_profile {
 	uint64_t samples;          /* shading samples the kernels ran over */
 	double kernel_ms;          /* the shading kernels alone, best of three runs */
+	double base_ms;            /* the same for the surfaces with no light: what reading
+				      the records and writing the colours costs */
 	double flops_per_sample;   /* float operations a sample takes (surface and light),
 				      counted on the interpreter (exec.h sl_exec_ops) over up
 				      to 1024 samples of each surface */

@@ -1508,6 +1508,16 @@ static void emit_light(struct glsl_gen *g, uint32_t k)
 }
 
 /* Fetch input @r (ncomp x elements floats from @off) into its register. */
+/*
+ * Float @o of the sample's record: records are read as RGBA32F texels (one
+ * fetch brings four floats; the compiler merges fetches of the same texel),
+ * the record's first texel at rl_in.
+ */
+static const char *in_float(struct glsl_gen *g, uint32_t o)
+{
+	return SL_GLSL_FMT(g, "texelFetch(u_in, rl_in + %u).%c", o / 4, "xyzw"[o % 4]);
+}
+
 static void load_input(struct glsl_gen *g, int32_t r, uint32_t off, const char *name)
 {
 	const struct sl_program *prog = g->surf;
@@ -1518,15 +1528,14 @@ static void load_input(struct glsl_gen *g, int32_t r, uint32_t off, const char *
 		const char *lv = rg->arraylen ? SL_GLSL_FMT(g, "%s[%d]", name, e) : name;
 		uint32_t o = off + (uint32_t)(e * nc);
 		if (nc == 1) {
-			sl_glsl_line(g, "%s = texelFetch(u_in, rl_in + %u).x;", lv, o);
+			sl_glsl_line(g, "%s = %s;", lv, in_float(g, o));
 		} else if (nc == 3) {
-			sl_glsl_line(g, "%s = vec3(texelFetch(u_in, rl_in + %u).x, "
-				     "texelFetch(u_in, rl_in + %u).x, texelFetch(u_in, rl_in + %u).x);",
-				     lv, o, o + 1, o + 2);
+			sl_glsl_line(g, "%s = vec3(%s, %s, %s);", lv, in_float(g, o), in_float(g, o + 1),
+				     in_float(g, o + 2));
 		} else {
 			for (int c = 0; c < 16; c++)
-				sl_glsl_line(g, "%s[%d][%d] = texelFetch(u_in, rl_in + %u).x;", lv, c / 4,
-					     c % 4, o + (uint32_t)c);
+				sl_glsl_line(g, "%s[%d][%d] = %s;", lv, c / 4, c % 4,
+					     in_float(g, o + (uint32_t)c));
 		}
 	}
 }
@@ -2025,7 +2034,7 @@ static void emit_main(struct glsl_gen *g, struct sl_glsl_layout *layout)
 	check_inputs(g, is_input);
 	uint32_t off = 0;
 	if (s->ninputs)
-		sl_glsl_line(g, "int rl_in = int(idx) * %u;", layout->in_stride);
+		sl_glsl_line(g, "int rl_in = int(idx) * %u;", layout->in_stride / 4);
 	for (uint32_t i = 0; i < s->ninputs; i++) {
 		layout->in_offset[i] = off;
 		load_input(g, s->inputs[i], off, g->sp.name[s->inputs[i]]);
@@ -2035,8 +2044,8 @@ static void emit_main(struct glsl_gen *g, struct sl_glsl_layout *layout)
 	}
 	if (layout->du_offset != NONE) {
 		rl_strbuf_puts(&g->sec[GS_GLOBALS], "float rl_du = 0.0;\nfloat rl_dv = 0.0;\n");
-		sl_glsl_line(g, "rl_du = texelFetch(u_in, rl_in + %u).x;", layout->du_offset);
-		sl_glsl_line(g, "rl_dv = texelFetch(u_in, rl_in + %u).x;", layout->dv_offset);
+		sl_glsl_line(g, "rl_du = %s;", in_float(g, layout->du_offset));
+		sl_glsl_line(g, "rl_dv = %s;", in_float(g, layout->dv_offset));
 	}
 	emit_range(g, prog->body_begin, prog->ncode);
 	off = 0;
@@ -2103,7 +2112,7 @@ static void fill_sites(struct glsl_gen *g, struct sl_glsl_layout *layout)
 static const char prelude[] =
 	"#version 430 core\n"
 	"layout(local_size_x = 64) in;\n"
-	"layout(binding = 0) uniform samplerBuffer u_in;\n"
+	"layout(binding = 0) uniform samplerBuffer u_in;   /* RGBA32F texels */\n"
 	"uniform int u_count;\n"
 	"uniform int u_first;\n"
 	"layout(std430, binding = 1) buffer Out { float out_data[]; };\n";
@@ -2178,6 +2187,8 @@ char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lig
 		layout->dv_offset = layout->in_stride + 1;
 		layout->in_stride += 2;
 	}
+	/* whole RGBA32F texels per record */
+	layout->in_stride = (layout->in_stride + 3) / 4 * 4;
 	if (g->stencil)
 		analyze_stencils(g);
 	for (uint32_t i = 0; i < s->noutputs; i++)

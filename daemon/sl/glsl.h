@@ -14,7 +14,7 @@
 
 /** The part of a program to emit, and where its data comes from. */
 /** Bumped whenever the generated code changes for the same input. */
-#define SL_GLSL_GENERATOR_VERSION 2
+#define SL_GLSL_GENERATOR_VERSION 3
 
 struct sl_slice {
 	const struct sl_program *prog;
@@ -91,7 +91,8 @@ struct sl_glsl_layout {
  * shader -> current). The slice's own parameters that are not inputs are
  * uniforms "p_NAME"; a coordinate system named in the code is the uniform
  * mat4 "space_NAME" (NAME -> current). Inputs come from samplerBuffer u_in
- * (texture unit 0) at sample * in_stride; outputs go to the SSBO at binding 1
+ * (texture unit 0) bound as RGBA32F texels (gpu.h: gpu_binding.rgba), float
+ * sample * in_stride + offset (in_stride is a multiple of 4); outputs go to the SSBO at binding 1
  * at sample * out_stride. The sample is the uniform int u_first (0 unless
  * set) plus the invocation index as gpu.h's gpu_dispatch() describes, which
  * the uniform int u_count bounds: a dispatch of n runs samples

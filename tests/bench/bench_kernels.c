@@ -109,7 +109,7 @@ static bool build(struct gpu_ctx *ctx, struct kernel *k)
 	if (!k->in || !k->out)
 		return false;
 	float one;
-	struct gpu_binding b[2] = { { 0, false, k->in }, { 1, true, k->out } };
+	struct gpu_binding b[2] = { { 0, false, k->in, true }, { 1, true, k->out } };
 	t0 = now_ms();
 	bool ok = gpu_dispatch(ctx, k->prog, b, 2, NSAMPLES) &&
 		  gpu_buffer_read(k->out, 0, sizeof(one), &one);
@@ -119,7 +119,7 @@ static bool build(struct gpu_ctx *ctx, struct kernel *k)
 
 static double run_ms(struct gpu_ctx *ctx, struct kernel *k)
 {
-	struct gpu_binding b[2] = { { 0, false, k->in }, { 1, true, k->out } };
+	struct gpu_binding b[2] = { { 0, false, k->in, true }, { 1, true, k->out } };
 	double best = 1e30;
 	for (int r = 0; r < 5; r++) {
 		float one;

@@ -466,7 +466,7 @@ static double xc_gpu(struct xc *c, const char *const *outs, int nouts, double to
 	struct gpu_buffer *bout = gpu_buffer_create(ctx, (size_t)n * (os ? os : 1) *
 							     sizeof(float), NULL);
 	float *out = calloc((size_t)n * (os ? os : 1), sizeof(float));
-	struct gpu_binding b[2] = { { 0, false, bin }, { 1, true, bout } };
+	struct gpu_binding b[2] = { { 0, false, bin, true }, { 1, true, bout } };
 	CHECK(gpu_dispatch(ctx, gp, b, 2, n));
 	t0 = now_ms();
 	CHECK(gpu_dispatch(ctx, gp, b, 2, n));
@@ -751,7 +751,7 @@ static double xc_specialized(struct xc *c, const char *const *dyn, size_t ndyn)
 	struct gpu_buffer *bin = gpu_buffer_create(ctx, (size_t)n * is * sizeof(float), in);
 	struct gpu_buffer *bout = gpu_buffer_create(ctx, (size_t)n * os * sizeof(float), NULL);
 	float *out = calloc((size_t)n * os, sizeof(float));
-	struct gpu_binding b[2] = { { 0, false, bin }, { 1, true, bout } };
+	struct gpu_binding b[2] = { { 0, false, bin, true }, { 1, true, bout } };
 	CHECK(gpu_dispatch(ctx, gp, b, 2, n));
 	CHECK(gpu_buffer_read(bout, 0, (size_t)n * os * sizeof(float), out));
 	maxerr = 0;
@@ -1803,7 +1803,7 @@ static void test_slice(void)
 		CHECK(gp && gpu_uniform_float(gp, "p_Kd", &kd, 1));
 		struct gpu_buffer *bi = gpu_buffer_create(ctx, sizeof(inv), inv);
 		struct gpu_buffer *bo = gpu_buffer_create(ctx, sizeof(outv), NULL);
-		struct gpu_binding b[2] = { { 0, false, bi }, { 1, true, bo } };
+		struct gpu_binding b[2] = { { 0, false, bi, true }, { 1, true, bo } };
 		CHECK(gp && gpu_dispatch(ctx, gp, b, 2, 4));
 		CHECK(gpu_buffer_read(bo, 0, sizeof(outv), outv));
 		for (int i = 0; i < 4; i++) {
@@ -2108,7 +2108,7 @@ static bool stencil_gpu(struct stencil_run *t, float *gpu,
 	uint32_t n = t->n, is = t->lay.in_stride, os = t->lay.out_stride;
 	struct gpu_buffer *bin = gpu_buffer_create(ctx, (size_t)n * is * sizeof(float), t->rec);
 	struct gpu_buffer *bout = gpu_buffer_create(ctx, (size_t)n * os * sizeof(float), NULL);
-	struct gpu_binding b[2 + 8] = { { 0, false, bin }, { 1, true, bout } };
+	struct gpu_binding b[2 + 8] = { { 0, false, bin, true }, { 1, true, bout } };
 	uint32_t nb = 2;
 	bool ok = !bind || bind(t, gp, b, &nb, bin);
 	CHECK(ok);
@@ -2412,7 +2412,7 @@ static void test_shadow_sites(void)
 		CHECK(src && lay.nshadows == 1 && lay.shadows[0].light == -1 &&
 		      !lay.shadows[0].param && lay.shadows[0].name &&
 		      !strcmp(lay.shadows[0].name, "key.shd"));
-		CHECK(src && lay.in_stride == 3 + 3 + 3 + 2 && lay.in_step_u[0] == 3 &&
+		CHECK(src && lay.in_stride == 12 /* 3 + 3 + 3 + 2, padded to texels */ && lay.in_step_u[0] == 3 &&
 		      lay.in_step_v[0] == 6 && lay.du_offset == 9 && lay.dv_offset == 10);
 		if (src)
 			check_valid("constant shadow site", src);
@@ -2476,7 +2476,7 @@ static void test_shadow_fill(void)
 		struct gpu_buffer *bout = gpu_buffer_create(ctx, sizeof(res), NULL);
 		CHECK(gpu_uniform_int(gp, "u_shadow0_size[0]", 0));
 		CHECK(gpu_uniform_int(gp, "u_shadow0_size[1]", 0));
-		struct gpu_binding b[3] = { { 0, false, bin }, { 1, true, bout },
+		struct gpu_binding b[3] = { { 0, false, bin, true }, { 1, true, bout },
 					    { SL_GLSL_SHADOW_UNIT0, false, bin } };
 		CHECK(gpu_dispatch(ctx, gp, b, 3, N));
 		CHECK(gpu_buffer_read(bout, 0, sizeof(res), res));
