@@ -81,7 +81,9 @@ static bool apply_edits(struct resolver *r, struct light *L, const char *name,
 		float v[16];
 		uint32_t n;
 		char err[512];
-		if (!shot_meta_check_edit(L->prog, name, e->param, e->values, e->nvalues, v, &n, err,
+		char who[300];
+		snprintf(who, sizeof(who), "light '%s'", name);
+		if (!shot_meta_check_edit(L->prog, who, e->param, e->values, e->nvalues, v, &n, err,
 					  sizeof(err))) {
 			fprintf(r->diag, "relight: error: %s\n", err);
 			return false;

@@ -43,8 +43,11 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#include <unistd.h>
 
 #define DEFAULT_BUDGET ((size_t)2 << 30)
+/* Light shaders that gpu_shot_add_light may bring beyond the shot's own. */
+#define MAX_ADDED_SHADERS 32
 #define NBANDS GPU_SHOT_LEVELS
 #define MAX_PARAM_FLOATS 4096
 
@@ -68,6 +71,10 @@ struct lstate {
 	char **s;                  /* per string parameter */
 	uint32_t ns;
 	uint32_t link;             /* the link version */
+	/* How much of the light its shadow maps take away, per channel:
+	 * density * (1 - shadow colour); 1 for plain shadows, 0 with shadows
+	 * off (rerendering-2007 §5.4). */
+	float shadow[3];
 };
 
 struct light {
@@ -79,12 +86,16 @@ struct light {
 	bool muted;
 	bool frozen;               /* in the light cache */
 	bool pinned;               /* unfrozen by gpu_shot_freeze: stays so */
+	bool removed;              /* gpu_shot_remove_light: gone */
+	bool shadows_off;
+	float shadow_density, shadow_color[3];
 	struct gpu_buffer *link;   /* per object: 1 reached, 0 not */
 	float *link_cpu;
 	uint32_t link_version;
 	struct graph_node *node;
 	struct graph_node *shadow_node;
 	struct gpu_shadow_map **maps;  /* per shadow site of its kernels: the bound map */
+	char **map_names;              /* per site: the name it was loaded for */
 	uint32_t nmaps;
 };
 
@@ -97,6 +108,12 @@ struct kernel {
 	char *glsl;
 	struct sl_glsl_layout layout;
 	struct gpu_program *prog;
+};
+
+struct surface_edit {
+	char *param;
+	float v[16];
+	uint32_t n;
 };
 
 /* A run of rows shaded with one set of uniforms. */
@@ -120,6 +137,8 @@ struct surface {
 	uint32_t nparamsets;
 	/* per paramset: the surface parameters' uniform values */
 	struct lstate *pvals;
+	/* gpu_shot_set_surface: values over every object's */
+	RL_VEC(struct surface_edit) edits;
 	struct graph_node *node;
 };
 
@@ -140,6 +159,7 @@ struct gpu_shot {
 	struct light *lights;
 	uint32_t nlights;
 	int solo;                  /* a light index, or -1 */
+	char *shader_path;         /* where gpu_shot_add_light looks for shaders */
 	struct surface *surfaces;
 	uint32_t nsurfaces;
 
@@ -211,7 +231,7 @@ static void lstate_copy(struct lstate *dst, const struct lstate *src)
 static bool lstate_equal(const struct lstate *a, const struct lstate *b)
 {
 	if (a->valid != b->valid || a->on != b->on || a->nv != b->nv || a->ns != b->ns ||
-	    a->link != b->link)
+	    a->link != b->link || memcmp(a->shadow, b->shadow, sizeof(a->shadow)))
 		return false;
 	if (memcmp(a->v, b->v, a->nv * sizeof(float)))
 		return false;
@@ -250,12 +270,12 @@ static bool eval_params(struct sl_exec *x, const struct sl_program *prog, const 
 	h.host.user = &h;
 	if (!sl_exec_set_grid(x, 1, 1) || !sl_exec_run(x, &h.host))
 		return false;
-	bool valid = out->valid, on = out->on;
-	uint32_t link = out->link;
+	struct lstate keep = *out;
 	lstate_free(out);
-	out->valid = valid;
-	out->on = on;
-	out->link = link;
+	out->valid = keep.valid;
+	out->on = keep.on;
+	out->link = keep.link;
+	memcpy(out->shadow, keep.shadow, sizeof(out->shadow));
 	RL_VEC(float) v = { 0 };
 	RL_VEC(char *) sv = { 0 };
 	for (uint32_t k = 0; k < prog->nparams; k++) {
@@ -323,7 +343,7 @@ static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *la
 /* The hand-written kernels                                                  */
 
 /*
- * Accumulate: dst[id] (+)= sign * link(object) * (out[row] - base[id]) for
+ * Accumulate: dst[id] (+)= weight * link(object) * (out[row] - base[id]) for
  * rows [u_first, u_first + u_count) of a surface; or, for the base itself,
  * dst[id] = out[row]. DST is float (the colours, the base) or double (the
  * light cache: a sum of floats whose magnitudes lie within 2^29 of each
@@ -343,7 +363,7 @@ static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *la
 	"uniform int u_ostride;\n" \
 	"uniform int u_id0;\n" \
 	"uniform int u_mode;\n" \
-	"uniform float u_sign;\n" \
+	"uniform vec3 u_weight;\n" \
 	"void main() {\n" \
 	"	uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 64u;\n" \
 	"	if (i >= uint(u_count)) return;\n" \
@@ -356,11 +376,11 @@ static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *la
 	"		}\n" \
 	"		return;\n" \
 	"	}\n" \
-	"	float w = u_sign * texelFetch(u_link, int(texelFetch(u_obj, row).x)).x;\n" \
-	"	if (w == 0.0) return;\n" \
+	"	float link = texelFetch(u_link, int(texelFetch(u_obj, row).x)).x;\n" \
+	"	if (link == 0.0) return;\n" \
 	"	for (int c = 0; c < 3; c++) {\n" \
 	"		precise float v = texelFetch(u_out, row * u_ostride + c).x - texelFetch(u_base, id * 3 + c).x;\n" \
-	"		v = isnan(v) || isinf(v) ? 0.0 : v * w;\n" \
+	"		v = isnan(v) || isinf(v) ? 0.0 : v * (u_weight[c] * link);\n" \
 	"		precise " DST " r = dst[id * 3 + c] + " DST "(v);\n" \
 	"		dst[id * 3 + c] = isnan(r) || isinf(r) ? " DST "(0.0) : r;\n" \
 	"	}\n" \
@@ -415,12 +435,13 @@ static bool count_dispatch(struct gpu_shot *s, uint64_t shaded)
 	return true;
 }
 
-/* Bind the shadow maps of kernel @k for light @L (NULL: the base kernel). */
-static bool bind_shadows(struct gpu_shot *s, const struct kernel *k, const struct light *L,
-			 struct gpu_binding *b, uint32_t *nb)
+/* Bind the shadow maps of kernel @k for light @L (NULL: the base kernel),
+ * or none when not @maps (every lookup gives the fill: no shadow). */
+static bool bind_maps(struct gpu_shot *s, const struct kernel *k, const struct light *L,
+		      bool maps, struct gpu_binding *b, uint32_t *nb)
 {
 	for (uint32_t i = 0; i < k->layout.nshadows; i++) {
-		const struct gpu_shadow_map *m = L && L->maps ? L->maps[i] : NULL;
+		const struct gpu_shadow_map *m = maps && L && L->maps ? L->maps[i] : NULL;
 		b[*nb] = (struct gpu_binding){ 0, false, s->zero, false };
 		if (!gpu_shadow_map_bind(s->ctx, k->prog, i, m, s->c2w, &b[*nb]))
 			return fail(s, "cannot bind the shadow map of a kernel");
@@ -430,13 +451,20 @@ static bool bind_shadows(struct gpu_shot *s, const struct kernel *k, const struc
 	return true;
 }
 
+/* Bind the shadow maps of kernel @k for light @L (NULL: the base kernel). */
+static bool bind_shadows(struct gpu_shot *s, const struct kernel *k, const struct light *L,
+			 struct gpu_binding *b, uint32_t *nb)
+{
+	return bind_maps(s, k, L, true, b, nb);
+}
+
 /*
  * Shade light @L (its state @st; NULL: the surface with no light) over the
  * rows of band @band of every surface, and fold the result into @dst:
  * with no light, dst = the result; else dst += sign * link * (result - base).
  */
-static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, int band,
-		  float sign, struct gpu_buffer *dst)
+static bool shade_pass(struct gpu_shot *s, struct light *L, const struct lstate *st, int band,
+		       bool maps, const float weight[3], struct gpu_buffer *dst)
 {
 	for (uint32_t si = 0; si < s->nsurfaces; si++) {
 		struct surface *sf = &s->surfaces[si];
@@ -453,7 +481,7 @@ static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, 
 		uint32_t nb = 0;
 		b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 		b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
-		if (!bind_shadows(s, k, L, b, &nb))
+		if (!bind_maps(s, k, L, maps, b, &nb))
 			return false;
 		uint32_t ostride = k->layout.out_stride;
 		for (size_t r = 0; r < sf->runs[band].len; r++) {
@@ -470,7 +498,7 @@ static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, 
 			gpu_uniform_int(a, "u_ostride", (int)ostride);
 			gpu_uniform_int(a, "u_id0", (int)sf->id0);
 			gpu_uniform_int(a, "u_mode", L ? 1 : 0);
-			gpu_uniform_float(a, "u_sign", &sign, 1);
+			gpu_uniform_float(a, "u_weight", weight, 3);
 			struct gpu_binding ab[5] = {
 				{ 0, false, s->scratch },
 				{ 1, false, sf->object },
@@ -484,6 +512,32 @@ static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, 
 		}
 	}
 	return true;
+}
+
+/*
+ * Shade light @L (its state @st; NULL: the surface with no light) over the
+ * rows of band @band of every surface and fold the result into @dst: with
+ * no light, dst = the result; else dst += sign * link * (result - base).
+ * A light whose shadows are lightened or tinted is the blend of two passes,
+ * without its maps and with them: unshadowed * (1 - w) + shadowed * w per
+ * channel, w = st->shadow.
+ */
+static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, int band,
+		  float sign, struct gpu_buffer *dst)
+{
+	float one[3] = { sign, sign, sign };
+	if (!L || !L->nmaps)
+		return shade_pass(s, L, st, band, true, one, dst);
+	float wo[3], wi[3];
+	bool any_o = false, any_i = false;
+	for (int c = 0; c < 3; c++) {
+		wi[c] = sign * st->shadow[c];
+		wo[c] = sign * (1.0f - st->shadow[c]);
+		any_o = any_o || wo[c] != 0.0f;
+		any_i = any_i || wi[c] != 0.0f;
+	}
+	return (!any_o || shade_pass(s, L, st, band, false, wo, dst)) &&
+	       (!any_i || shade_pass(s, L, st, band, true, wi, dst));
 }
 
 /* colors = base + cache over band @band's samples. */
@@ -524,7 +578,7 @@ static bool clear_band(struct gpu_shot *s, int band)
 
 static bool light_on(const struct gpu_shot *s, uint32_t i)
 {
-	return !s->lights[i].muted && (s->solo < 0 || s->solo == (int)i);
+	return !s->lights[i].muted && !s->lights[i].removed && (s->solo < 0 || s->solo == (int)i);
 }
 
 /*
@@ -546,6 +600,10 @@ static bool run_shade(struct graph_node *n, void *user, bool *changed)
 		s->lights[i].cur.on = light_on(s, i);
 		s->lights[i].cur.link = s->lights[i].link_version;
 		s->lights[i].cur.valid = true;
+		for (int c = 0; c < 3; c++)
+			s->lights[i].cur.shadow[c] =
+				s->lights[i].shadows_off ? 0.0f
+				: s->lights[i].shadow_density * (1.0f - s->lights[i].shadow_color[c]);
 	}
 	struct lstate *cached = s->cached[band];
 	bool rebuild = !s->base_valid[band];
@@ -617,7 +675,7 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 			L = &s->lights[i];
 	if (!L)
 		return false;
-	*changed = true;
+	*changed = false;
 	/* the sites are the same in every surface's kernel for this light shader */
 	const struct kernel *k = &s->surfaces[0].lk[L->shader];
 	const struct sl_program *lp = s->lshaders[L->shader].prog;
@@ -635,8 +693,13 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 				si++;
 			}
 		}
+		if (L->map_names[i] && !strcmp(L->map_names[i], name))
+			continue;
+		free(L->map_names[i]);
+		L->map_names[i] = rl_xstrdup(name);
 		gpu_shadow_map_destroy(L->maps[i]);
 		L->maps[i] = NULL;
+		*changed = true;
 		if (name[0]) {
 			char err[512];
 			L->maps[i] = gpu_shadow_map_load(s->ctx, s->tex, name, err, sizeof(err));
@@ -671,7 +734,7 @@ static bool load_lights(struct gpu_shot *s)
 	const cJSON *ls = cJSON_GetObjectItemCaseSensitive(s->meta, "lights");
 	int n = cJSON_GetArraySize(ls);
 	s->lights = rl_xcalloc((size_t)n + 1, sizeof(*s->lights));
-	s->lshaders = rl_xcalloc((size_t)n + 1, sizeof(*s->lshaders));
+	s->lshaders = rl_xcalloc((size_t)n + MAX_ADDED_SHADERS, sizeof(*s->lshaders));
 	const cJSON *l;
 	cJSON_ArrayForEach(l, ls) {
 		struct light *L = &s->lights[s->nlights];
@@ -703,6 +766,7 @@ static bool load_lights(struct gpu_shot *s)
 		if (!eval_params(L->init, s->lshaders[k].prog, L->to_camera, s->w2c, &L->cur))
 			return fail(s, "light '%s': its parameter defaults failed", name);
 		L->frozen = true;
+		L->shadow_density = 1.0f;
 		L->node = graph_add(s->graph, name, GRAPH_PARAMS, NULL, NULL);
 	}
 	return true;
@@ -817,7 +881,7 @@ static bool load_surface(struct gpu_shot *s, const struct shot_file *f, uint32_t
 	if (ok && sp->needs_stencil && !sf->base.layout.in_step_u)
 		ok = fail(s, "surface '%s' needs derivative stencils, which its GPU program "
 			  "does not take", sf->name);
-	sf->lk = rl_xcalloc(s->nlshaders + 1, sizeof(*sf->lk));
+	sf->lk = rl_xcalloc(s->nlshaders + MAX_ADDED_SHADERS, sizeof(*sf->lk));
 	for (uint32_t k = 0; ok && k < s->nlshaders; k++)
 		ok = make_kernel(s, sf, s->lshaders[k].prog, &sf->lk[k], steps);
 	free(steps);
@@ -1096,6 +1160,8 @@ static bool warm_up(struct gpu_shot *s)
 		gpu_uniform_int(acc[i], "u_id0", 0);
 		gpu_uniform_int(acc[i], "u_ostride", 3);
 		gpu_uniform_int(acc[i], "u_mode", 1);
+		static const float w[3] = { 1, 1, 1 };
+		gpu_uniform_float(acc[i], "u_weight", w, 3);
 		struct gpu_binding ab[5] = {
 			{ 0, false, s->zero }, { 1, false, s->zero }, { 2, false, s->zero },
 			{ 3, false, s->zero }, { 4, true, dst[i] },
@@ -1127,6 +1193,7 @@ static void build_graph(struct gpu_shot *s)
 			char name[300];
 			snprintf(name, sizeof(name), "shadow:%s", L->name);
 			L->maps = rl_xcalloc(k->layout.nshadows, sizeof(*L->maps));
+			L->map_names = rl_xcalloc(k->layout.nshadows, sizeof(*L->map_names));
 			L->nmaps = k->layout.nshadows;
 			L->shadow_node = graph_add(s->graph, name, GRAPH_DEPTH_MAP, run_shadow, s);
 			graph_connect(s->graph, L->node, L->shadow_node);
@@ -1171,6 +1238,7 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	s->diag = opts && opts->diag ? opts->diag : stderr;
 	s->path = rl_xstrdup(path);
 	s->budget = opts && opts->budget ? opts->budget : DEFAULT_BUDGET;
+	s->shader_path = opts && opts->shader_path ? rl_xstrdup(opts->shader_path) : NULL;
 	s->solo = -1;
 	s->graph = graph_create();
 	double t0 = now_ms();
@@ -1318,6 +1386,9 @@ void gpu_shot_close(struct gpu_shot *s)
 		for (uint32_t p = 0; p < sf->nparamsets; p++)
 			lstate_free(&sf->pvals[p]);
 		free(sf->pvals);
+		for (size_t e = 0; e < sf->edits.len; e++)
+			free(sf->edits.data[e].param);
+		rl_vec_free(sf->edits);
 		gpu_buffer_destroy(sf->records);
 		gpu_buffer_destroy(sf->object);
 		sl_exec_destroy(sf->init_x);
@@ -1328,9 +1399,12 @@ void gpu_shot_close(struct gpu_shot *s)
 	free(s->surfaces);
 	for (uint32_t i = 0; i < s->nlights; i++) {
 		struct light *L = &s->lights[i];
-		for (uint32_t m = 0; m < L->nmaps; m++)
+		for (uint32_t m = 0; m < L->nmaps; m++) {
 			gpu_shadow_map_destroy(L->maps[m]);
+			free(L->map_names[m]);
+		}
 		free(L->maps);
+		free(L->map_names);
 		free(L->name);
 		sl_exec_destroy(L->init);
 		lstate_free(&L->cur);
@@ -1345,6 +1419,7 @@ void gpu_shot_close(struct gpu_shot *s)
 	}
 	for (uint32_t k = 0; k < s->nlshaders; k++)
 		sl_program_destroy(s->lshaders[k].prog);
+	free(s->shader_path);
 	free(s->lshaders);
 	gpu_ifb_destroy(s->ifb);
 	gpu_buffer_destroy(s->base);
@@ -1399,7 +1474,7 @@ uint32_t gpu_shot_light_count(const struct gpu_shot *s)
 
 const char *gpu_shot_light_name(const struct gpu_shot *s, uint32_t i)
 {
-	return i < s->nlights ? s->lights[i].name : NULL;
+	return i < s->nlights && !s->lights[i].removed ? s->lights[i].name : NULL;
 }
 
 const char *gpu_shot_light_shader(const struct gpu_shot *s, uint32_t i)
@@ -1410,7 +1485,7 @@ const char *gpu_shot_light_shader(const struct gpu_shot *s, uint32_t i)
 int gpu_shot_find_light(const struct gpu_shot *s, const char *name)
 {
 	for (uint32_t i = 0; name && i < s->nlights; i++)
-		if (!strcmp(s->lights[i].name, name))
+		if (!s->lights[i].removed && !strcmp(s->lights[i].name, name))
 			return (int)i;
 	return -1;
 }
@@ -1423,7 +1498,9 @@ static struct light *find(struct gpu_shot *s, const char *name, char *err, size_
 	char list[512] = "";
 	size_t at = 0;
 	for (uint32_t k = 0; k < s->nlights && at + 2 < sizeof(list); k++) {
-		int w = snprintf(list + at, sizeof(list) - at, "%s%s", k ? ", " : "",
+		if (s->lights[k].removed)
+			continue;
+		int w = snprintf(list + at, sizeof(list) - at, "%s%s", at ? ", " : "",
 				 s->lights[k].name);
 		at += w > 0 ? (size_t)w : 0;
 	}
@@ -1461,8 +1538,10 @@ bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
 	const struct sl_program *lp = s->lshaders[L->shader].prog;
 	float v[16];
 	uint32_t nv;
+	char who[300];
+	snprintf(who, sizeof(who), "light '%s'", L->name);
 	if (!values || !param ||
-	    !shot_meta_check_edit(lp, L->name, param, values, n, v, &nv, err, errlen))
+	    !shot_meta_check_edit(lp, who, param, values, n, v, &nv, err, errlen))
 		return false;
 	if (!sl_exec_set_param(L->init, param, v, nv)) {
 		errorf(err, errlen, "light '%s': parameter '%s' cannot be set", L->name, param);
@@ -1719,5 +1798,278 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 	}
 	out->flops_per_sample = out->samples ? flops / (double)out->samples : 0.0;
 	out->flops = out->kernel_ms > 0 ? flops / (out->kernel_ms * 1e-3) : 0.0;
+	return true;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Shadows, surfaces, adding and removing lights                             */
+
+static struct light *shadowed(struct gpu_shot *s, const char *light, char *err, size_t errlen)
+{
+	struct light *L = find(s, light, err, errlen);
+	if (L && !L->nmaps) {
+		errorf(err, errlen, "light '%s' casts no shadows (shader '%s' reads no shadow map)",
+		       L->name, s->lshaders[L->shader].prog->name);
+		return NULL;
+	}
+	return L;
+}
+
+bool gpu_shot_shadows(struct gpu_shot *s, const char *light, bool on, char *err, size_t errlen)
+{
+	struct light *L = shadowed(s, light, err, errlen);
+	if (!L)
+		return false;
+	if (L->shadows_off == !on)
+		return true;
+	L->shadows_off = !on;
+	editing(s, L);
+	touched(s, L);
+	return true;
+}
+
+bool gpu_shot_shadow_look(struct gpu_shot *s, const char *light, float density,
+			  const float color[3], char *err, size_t errlen)
+{
+	struct light *L = shadowed(s, light, err, errlen);
+	if (!L)
+		return false;
+	bool ok = density >= 0.0f && density <= 1.0f;
+	for (int c = 0; c < 3 && color; c++)
+		ok = ok && color[c] >= 0.0f && color[c] <= 1.0f;
+	if (!ok || !color) {
+		errorf(err, errlen, "light '%s': shadow density and colour take values in [0, 1]",
+		       L->name);
+		return false;
+	}
+	L->shadow_density = density;
+	memcpy(L->shadow_color, color, sizeof(L->shadow_color));
+	editing(s, L);
+	touched(s, L);
+	return true;
+}
+
+/* The parameter values of every paramset of @sf: the baked ones, then the edits. */
+static bool surface_values(struct gpu_shot *s, struct surface *sf)
+{
+	const cJSON *psets = cJSON_GetObjectItemCaseSensitive(sf->meta, "param_sets");
+	bool per_object = cJSON_GetArraySize(psets) > 0;
+	for (uint32_t ps = 0; ps < sf->nparamsets; ps++) {
+		sl_exec_reset_params(sf->init_x);
+		if (per_object && !shot_meta_set_params(sf->init_x, cJSON_GetArrayItem(psets, (int)ps),
+							s->path, s->diag))
+			return false;
+		for (size_t e = 0; e < sf->edits.len; e++)
+			sl_exec_set_param(sf->init_x, sf->edits.data[e].param, sf->edits.data[e].v,
+					  sf->edits.data[e].n);
+		if (!eval_params(sf->init_x, sf->spec->dynamic, NULL, s->w2c, &sf->pvals[ps]))
+			return false;
+	}
+	return true;
+}
+
+bool gpu_shot_set_surface(struct gpu_shot *s, const char *shader, const char *param,
+			  const float *values, uint32_t n, char *err, size_t errlen)
+{
+	uint32_t found = 0;
+	for (uint32_t i = 0; i < s->nsurfaces && shader && param && values; i++) {
+		struct surface *sf = &s->surfaces[i];
+		if (strcmp(sf->name, shader))
+			continue;
+		found++;
+		bool editable = false;
+		const cJSON *d;
+		cJSON_ArrayForEach(d, cJSON_GetObjectItemCaseSensitive(sf->meta, "dynamic_params"))
+			editable = editable || (cJSON_IsString(d) && !strcmp(d->valuestring, param));
+		char who[300];
+		snprintf(who, sizeof(who), "surface '%s'", sf->name);
+		if (!editable) {
+			if (sl_program_find_param(sf->prog, param) < 0)
+				errorf(err, errlen, "%s has no parameter '%s'", who, param);
+			else
+				errorf(err, errlen, "%s: parameter '%s' was baked as part of the cache; "
+				       "bake with --dynamic-surface %s to edit it", who, param, param);
+			return false;
+		}
+		struct surface_edit e = { 0 };
+		if (!shot_meta_check_edit(sf->prog, who, param, values, n, e.v, &e.n, err, errlen))
+			return false;
+		size_t k = 0;
+		while (k < sf->edits.len && strcmp(sf->edits.data[k].param, param))
+			k++;
+		if (k == sf->edits.len) {
+			e.param = rl_xstrdup(param);
+			rl_vec_push(sf->edits, e);
+		} else {
+			memcpy(sf->edits.data[k].v, e.v, sizeof(e.v));
+			sf->edits.data[k].n = e.n;
+		}
+		if (!surface_values(s, sf)) {
+			errorf(err, errlen, "%s: its parameter values failed", who);
+			return false;
+		}
+		graph_touch(sf->node);
+	}
+	if (!found) {
+		errorf(err, errlen, "no surface shader '%s' in the shot", shader ? shader : "");
+		return false;
+	}
+	/* every light's contribution changes with the surface: sum the cache again */
+	for (int b = 0; b < NBANDS; b++)
+		s->base_valid[b] = false;
+	return true;
+}
+
+/* The light shader @name: one of the shot's, or compiled from the shader path. */
+static int light_shader(struct gpu_shot *s, const char *name, char *err, size_t errlen)
+{
+	for (uint32_t k = 0; k < s->nlshaders; k++)
+		if (!strcmp(s->lshaders[k].prog->name, name))
+			return (int)k;
+	if (s->nlshaders >= (uint32_t)cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(
+				     s->meta, "lights")) + MAX_ADDED_SHADERS - 1) {
+		errorf(err, errlen, "too many light shaders added to the shot");
+		return -1;
+	}
+	/* the shader path, then the folders of the shot's own shaders */
+	RL_VEC(char *) dirs = { 0 };
+	if (s->shader_path) {
+		char *p = rl_xstrdup(s->shader_path), *save = NULL;
+		for (char *d = strtok_r(p, ":", &save); d; d = strtok_r(NULL, ":", &save))
+			rl_vec_push(dirs, rl_xstrdup(d));
+		free(p);
+	}
+	const cJSON *l;
+	cJSON_ArrayForEach(l, cJSON_GetObjectItemCaseSensitive(s->meta, "lights")) {
+		const char *src = shot_meta_str(l, "source");
+		const char *slash = src ? strrchr(src, '/') : NULL;
+		if (slash) {
+			char *d = rl_xstrdup(src);
+			d[slash - src] = '\0';
+			rl_vec_push(dirs, d);
+		}
+	}
+	struct sl_program *p = NULL;
+	for (size_t i = 0; i < dirs.len && !p; i++) {
+		char path[4096];
+		snprintf(path, sizeof(path), "%s/%s.sl", dirs.data[i], name);
+		if (access(path, R_OK) == 0) {
+			struct sl_options so = { .diag = s->diag };
+			p = sl_compile_file(path, &so);
+		}
+	}
+	for (size_t i = 0; i < dirs.len; i++)
+		free(dirs.data[i]);
+	rl_vec_free(dirs);
+	if (!p || p->kind != SL_SHADER_LIGHT) {
+		errorf(err, errlen, "%s light shader '%s' %s", p ? "" : "no",
+		       name, p ? "is not a light shader" : "on the shader path");
+		sl_program_destroy(p);
+		return -1;
+	}
+	uint32_t k = s->nlshaders;
+	s->lshaders[k].prog = p;
+	s->lshaders[k].init = *p;
+	s->lshaders[k].init.ncode = p->body_begin;
+	s->nlshaders++;
+	for (uint32_t i = 0; i < s->nsurfaces; i++) {
+		struct surface *sf = &s->surfaces[i];
+		uint8_t *steps = NULL;
+		if (sf->spec->needs_stencil) {
+			steps = rl_xcalloc(sf->spec->ncached + 1, 1);
+			memcpy(steps, sf->spec->cached_deriv, sf->spec->ncached);
+		}
+		bool ok = make_kernel(s, sf, p, &sf->lk[k], steps);
+		free(steps);
+		if (!ok) {
+			errorf(err, errlen, "light shader '%s' cannot light surface '%s' on the GPU "
+			       "(see the messages above)", name, sf->name);
+			/* the kernels made so far stay: the shader may be added again */
+			return -1;
+		}
+	}
+	return (int)k;
+}
+
+int gpu_shot_add_light(struct gpu_shot *s, const char *name, const char *shader,
+		       const float shader_to_world[16], char *err, size_t errlen)
+{
+	if (!name || !name[0] || !shader) {
+		errorf(err, errlen, "a new light needs a name and a shader");
+		return -1;
+	}
+	if (gpu_shot_find_light(s, name) >= 0) {
+		errorf(err, errlen, "the shot already has a light named '%s'", name);
+		return -1;
+	}
+	for (int c = 0; c < 16 && shader_to_world; c++)
+		if (!isfinite(shader_to_world[c])) {
+			errorf(err, errlen, "light '%s': its transform is not finite", name);
+			return -1;
+		}
+	int k = light_shader(s, shader, err, errlen);
+	if (k < 0)
+		return -1;
+	s->lights = rl_xrealloc(s->lights, (s->nlights + 1) * sizeof(*s->lights));
+	for (int b = 0; b < NBANDS; b++) {
+		s->cached[b] = rl_xrealloc(s->cached[b], (s->nlights + 1) * sizeof(struct lstate));
+		memset(&s->cached[b][s->nlights], 0, sizeof(struct lstate));
+	}
+	struct light *L = &s->lights[s->nlights];
+	memset(L, 0, sizeof(*L));
+	static const float identity[16] = { 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 };
+	sl_m44_mul(L->to_camera, shader_to_world ? shader_to_world : identity, s->w2c);
+	L->name = rl_xstrdup(name);
+	L->shader = (uint32_t)k;
+	L->shadow_density = 1.0f;
+	L->cur.on = true;
+	L->init = sl_exec_create(&s->lshaders[k].init, 1);
+	L->link_cpu = rl_xmalloc((s->nobjects + 1) * sizeof(float));
+	for (uint32_t o = 0; o <= s->nobjects; o++)
+		L->link_cpu[o] = 1.0f;
+	L->link = buffer(s, (s->nobjects + 1) * sizeof(float), L->link_cpu);
+	if (!L->init || !L->link ||
+	    !eval_params(L->init, s->lshaders[k].prog, L->to_camera, s->w2c, &L->cur)) {
+		errorf(err, errlen, "light '%s' cannot be set up", name);
+		sl_exec_destroy(L->init);
+		gpu_buffer_destroy(L->link);
+		free(L->link_cpu);
+		free(L->name);
+		lstate_free(&L->cur);
+		return -1;
+	}
+	s->nlights++;
+	L->node = graph_add(s->graph, name, GRAPH_PARAMS, NULL, NULL);
+	const struct kernel *kk = s->nsurfaces ? &s->surfaces[0].lk[k] : NULL;
+	if (kk && kk->layout.nshadows) {
+		char nm[300];
+		snprintf(nm, sizeof(nm), "shadow:%s", name);
+		L->maps = rl_xcalloc(kk->layout.nshadows, sizeof(*L->maps));
+		L->map_names = rl_xcalloc(kk->layout.nshadows, sizeof(*L->map_names));
+		L->nmaps = kk->layout.nshadows;
+		L->shadow_node = graph_add(s->graph, nm, GRAPH_DEPTH_MAP, run_shadow, s);
+		graph_connect(s->graph, L->node, L->shadow_node);
+	}
+	for (int b = 0; b < NBANDS; b++) {
+		graph_connect(s->graph, L->node, s->shade[b]);
+		if (L->shadow_node)
+			graph_connect(s->graph, L->shadow_node, s->shade[b]);
+	}
+	/* a new light is being edited: not in the cache */
+	editing(s, L);
+	if (!warm_up(s))
+		errorf(err, errlen, "running the programs of light '%s' failed", name);
+	return (int)(s->nlights - 1);
+}
+
+bool gpu_shot_remove_light(struct gpu_shot *s, const char *light, char *err, size_t errlen)
+{
+	struct light *L = find(s, light, err, errlen);
+	if (!L)
+		return false;
+	if (s->solo == (int)(L - s->lights))
+		s->solo = -1;
+	L->removed = true;
+	touched(s, L);
 	return true;
 }

@@ -47,6 +47,9 @@ struct gpu_shot_opts {
 	const char *texture_path;  /* where shadow maps are found; NULL: "." */
 	size_t budget;             /* GPU bytes the shot may take; 0: 2 GiB */
 	bool progress;             /* a progress bar on stderr while loading */
+	const char *shader_path;   /* colon-separated folders where gpu_shot_add_light looks
+				      for light shaders the shot lacks (then the folders of
+				      the shot's own shaders); NULL: those alone */
 };
 
 /**
@@ -113,6 +116,45 @@ bool gpu_shot_link(struct gpu_shot *s, const char *light, uint32_t object, bool 
  */
 bool gpu_shot_freeze(struct gpu_shot *s, const char *light, bool frozen, char *err,
 		     size_t errlen);
+
+/**
+ * Shadows of light @light on or off (rerendering-2007 §5.4.1). Refused for a
+ * light whose shader reads no shadow map.
+ */
+bool gpu_shot_shadows(struct gpu_shot *s, const char *light, bool on, char *err, size_t errlen);
+
+/**
+ * The look of a light's shadows (rerendering-2007 §5.4.2-5.4.3): of the
+ * light its shadow maps block, the fraction @density in [0, 1] is taken away
+ * (1, the default: as the shader casts them; 0: no shadow), tinted by
+ * @color (each channel in [0, 1]; black, the default: all of it; a colour
+ * lets that colour through). Per channel the light is the unshadowed light
+ * times 1 - w plus the shadowed light times w, w = density * (1 - color):
+ * two passes of the light's kernels, with and without its maps.
+ */
+bool gpu_shot_shadow_look(struct gpu_shot *s, const char *light, float density,
+			  const float color[3], char *err, size_t errlen);
+
+/**
+ * Set surface parameter @param, baked as editable (`relight bake
+ * --dynamic-surface`), to @values on every object whose surface shader is
+ * @shader (checked as light values are). The light cache is summed again.
+ */
+bool gpu_shot_set_surface(struct gpu_shot *s, const char *shader, const char *param,
+			  const float *values, uint32_t n, char *err, size_t errlen);
+
+/**
+ * Add light @name of shader @shader (a light shader of the shot, or one
+ * found on the shader path: then its kernels are compiled now, the one time
+ * an edit compiles) with its parameters' defaults and @shader_to_world (NULL:
+ * identity), reaching every object, unfrozen. Returns its index, or -1 with
+ * the reason in @err.
+ */
+int gpu_shot_add_light(struct gpu_shot *s, const char *name, const char *shader,
+		       const float shader_to_world[16], char *err, size_t errlen);
+
+/** Remove a light (its index stays taken; gpu_shot_light_name gives NULL for it). */
+bool gpu_shot_remove_light(struct gpu_shot *s, const char *light, char *err, size_t errlen);
 
 /* ---- rendering ---- */
 

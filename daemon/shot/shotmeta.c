@@ -132,26 +132,26 @@ static void param_range(const char *name, float *lo, float *hi)
 	}
 }
 
-bool shot_meta_check_edit(const struct sl_program *light, const char *lname, const char *param,
+bool shot_meta_check_edit(const struct sl_program *light, const char *who, const char *param,
 			  const float *values, uint32_t n, float out[16], uint32_t *nout,
 			  char *err, size_t errlen)
 {
 	int k = sl_program_find_param(light, param);
 	if (k < 0 || light->params[k].output) {
-		snprintf(err, errlen, "light '%s' (shader '%s') has no parameter '%s'", lname,
+		snprintf(err, errlen, "%s (shader '%s') has no parameter '%s'", who,
 			 light->name, param);
 		return false;
 	}
 	const struct sl_type *ty = &light->params[k].type;
 	uint32_t nc = (uint32_t)sl_type_ncomp(ty->base);
 	if (ty->base == SL_TYPE_STRING || ty->arraylen >= 0 || nc == 0) {
-		snprintf(err, errlen, "light '%s': parameter '%s' is a %s%s; only float, colour, "
-			 "point, vector, normal and matrix parameters can be edited", lname, param,
+		snprintf(err, errlen, "%s: parameter '%s' is a %s%s; only float, colour, "
+			 "point, vector, normal and matrix parameters can be edited", who, param,
 			 sl_basetype_name(ty->base), ty->arraylen >= 0 ? " array" : "");
 		return false;
 	}
 	if (n == 0 || n > 16) {
-		snprintf(err, errlen, "light '%s': parameter '%s' takes %u value%s, not %u", lname,
+		snprintf(err, errlen, "%s: parameter '%s' takes %u value%s, not %u", who,
 			 param, nc, nc == 1 ? "" : "s", n);
 		return false;
 	}
@@ -163,21 +163,21 @@ bool shot_meta_check_edit(const struct sl_program *light, const char *lname, con
 		memcpy(out, values, n * sizeof(float));
 	}
 	if (m != nc) {
-		snprintf(err, errlen, "light '%s': parameter '%s' is a %s and takes %u value%s, not "
-			 "%u", lname, param, sl_basetype_name(ty->base), nc, nc == 1 ? "" : "s", n);
+		snprintf(err, errlen, "%s: parameter '%s' is a %s and takes %u value%s, not "
+			 "%u", who, param, sl_basetype_name(ty->base), nc, nc == 1 ? "" : "s", n);
 		return false;
 	}
 	float lo, hi;
 	param_range(param, &lo, &hi);
 	for (uint32_t c = 0; c < m; c++) {
 		if (!isfinite(out[c])) {
-			snprintf(err, errlen, "light '%s': parameter '%s' needs finite values", lname,
+			snprintf(err, errlen, "%s: parameter '%s' needs finite values", who,
 				 param);
 			return false;
 		}
 		if (!(out[c] >= lo && out[c] <= hi)) {
-			snprintf(err, errlen, "light '%s': parameter '%s' is %g, outside [%g, %g]",
-				 lname, param, (double)out[c], (double)lo, (double)hi);
+			snprintf(err, errlen, "%s: parameter '%s' is %g, outside [%g, %g]",
+				 who, param, (double)out[c], (double)lo, (double)hi);
 			return false;
 		}
 	}

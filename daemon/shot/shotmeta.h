@@ -47,7 +47,8 @@ const float *shot_meta_channel(const struct shot_table *t, const cJSON *chans, c
 			       float **owned);
 
 /**
- * Check an edit of parameter @param of light @light (named @lname) to
+ * Check an edit of parameter @param of shader @light (@who names it in
+ * messages: "light '3'", "surface 'plastic'") to
  * @values (@n of them): the parameter must exist, be a float, colour, point,
  * vector, normal or matrix (not a string or an array), take @n values (one
  * value broadcasts to a colour) that are finite and within the range the
@@ -57,7 +58,7 @@ const float *shot_meta_channel(const struct shot_table *t, const cJSON *chans, c
  * *@nout; otherwise false with the reason, naming the light and the
  * parameter, in @err (always NUL-terminated).
  */
-bool shot_meta_check_edit(const struct sl_program *light, const char *lname, const char *param,
+bool shot_meta_check_edit(const struct sl_program *light, const char *who, const char *param,
 			  const float *values, uint32_t n, float out[16], uint32_t *nout,
 			  char *err, size_t errlen);
 

@@ -64,6 +64,35 @@ static const char scene[] =
 	"  AttributeEnd\n"
 	"WorldEnd\n";
 
+/* A shadowed key light: frame 1 renders its depth, frame 2 the view. The
+ * string SHADOWNAME is replaced by the map's name, or by nothing. */
+static const char shadow_scene[] =
+	"FrameBegin 1\n"
+	"Format 128 128 1\nPixelSamples 1 1\nPixelFilter \"box\" 1 1\n"
+	"Hider \"hidden\" \"depthfilter\" \"midpoint\"\n"
+	"Projection \"perspective\" \"fov\" 50\n"
+	"Display \"key.z\" \"zfile\" \"z\"\n"
+	"Rotate -90 1 0 0\nTranslate 0 -4 -1.7\n"
+	"WorldBegin\n"
+	"  Surface \"constant\"\n"
+	"  Polygon \"P\" [-3 0 -2  -3 0 4  3 0 4  3 0 -2]\n"
+	"  AttributeBegin Translate 0 0.5 1 Sphere 0.5 -0.5 0.5 360 AttributeEnd\n"
+	"WorldEnd\nFrameEnd\n"
+	"MakeShadow \"key.z\" \"key.shd\"\n"
+	"FrameBegin 2\n"
+	"Format 64 48 1\nPixelSamples 2 2\n"
+	"Projection \"perspective\" \"fov\" 45\n"
+	"Display \"shadowed.exr\" \"file\" \"rgba\"\n"
+	"Translate 0 -0.6 4\nRotate -15 1 0 0\n"
+	"WorldBegin\n"
+	"  LightSource \"ambientlight\" 1 \"intensity\" 0.1\n"
+	"  LightSource \"shadowspot\" 2 \"intensity\" 14 \"from\" [0 4 1.7] \"to\" [0 0 1]"
+	" \"coneangle\" 0.9 SHADOWNAME\n"
+	"  Surface \"plastic\" \"Kd\" 0.7\n"
+	"  Polygon \"P\" [-3 0 -2  -3 0 4  3 0 4  3 0 -2]\n"
+	"  AttributeBegin Surface \"matte\" Translate 0 0.5 1 Sphere 0.5 -0.5 0.5 360 AttributeEnd\n"
+	"WorldEnd\nFrameEnd\n";
+
 static struct gpu_ctx *ctx;
 static struct gpu_shot *shot;
 static char shot_path[512];
@@ -288,6 +317,172 @@ static void test_graph_work(void)
 	CHECK(gpu_shot_render(shot, 3, &st));
 }
 
+static char workdir[64], relight_cmd[1024];
+
+/* Bake @rib_text (with @from replaced by @to) into WORKDIR/@name.shot.exr with @flags. */
+static bool bake(const char *name, const char *rib_text, const char *from, const char *to,
+		 const char *flags, char *shot, size_t len)
+{
+	char rib[256], cmd[2048];
+	snprintf(rib, sizeof(rib), "%s/%s.rib", workdir, name);
+	FILE *f = fopen(rib, "w");
+	if (!f)
+		return false;
+	const char *at = from ? strstr(rib_text, from) : NULL;
+	if (at) {
+		fwrite(rib_text, 1, (size_t)(at - rib_text), f);
+		fputs(to, f);
+		fputs(at + strlen(from), f);
+	} else {
+		fputs(rib_text, f);
+	}
+	fclose(f);
+	snprintf(shot, len, "%s/%s.shot.exr", workdir, name);
+	snprintf(cmd, sizeof(cmd), "cd %s && %s bake -q %s -o %s %s", workdir, relight_cmd, flags,
+		 shot, rib);
+	return system(cmd) == 0;
+}
+
+static float *image_of(const char *path, bool gpu_side, struct gpu_shot *sh)
+{
+	float *img = calloc((size_t)W * H * 4, sizeof(float));
+	if (gpu_side) {
+		CHECK(gpu_shot_render(sh, 3, NULL) && gpu_shot_read_rgba(sh, 3, img));
+		return img;
+	}
+	struct resolve_opts o = { .diag = stderr, .level = 3, .texture_path = workdir };
+	struct resolve_result r;
+	CHECK(resolve_cpu(path, &o, &r));
+	if (r.rgba && r.width == W && r.height == H)
+		memcpy(img, r.rgba, (size_t)W * H * 4 * sizeof(float));
+	free(r.rgba);
+	return img;
+}
+
+/* Shadows off, shadow density and colour, against the CPU with and without the map. */
+static void test_shadow_look(void)
+{
+	char on[512], off[512], err[256];
+	CHECK(bake("on", shadow_scene, "SHADOWNAME", "\"shadowname\" \"key.shd\" \"samples\" 16", "",
+		   on, sizeof(on)));
+	CHECK(bake("off", shadow_scene, "SHADOWNAME", "", "", off, sizeof(off)));
+	struct gpu_shot_opts o = { .texture_path = workdir };
+	struct gpu_shot *sh = gpu_shot_open(ctx, on, &o);
+	CHECK(sh != NULL);
+	if (!sh)
+		return;
+	size_t n = (size_t)W * H * 4;
+	float *cpu_on = image_of(on, false, NULL), *cpu_off = image_of(off, false, NULL);
+	float *g = image_of(on, true, sh);
+	CHECK(max_rel(g, cpu_on, n, NULL) <= REL_TOL);
+	/* the map darkens part of the frame */
+	CHECK(max_rel(cpu_on, cpu_off, n, NULL) > 0.5);
+	free(g);
+	CHECK(!gpu_shot_shadows(sh, "1", false, err, sizeof(err)));
+	CHECK(strstr(err, "casts no shadows") != NULL);
+	CHECK(gpu_shot_shadows(sh, "2", false, err, sizeof(err)));
+	g = image_of(on, true, sh);
+	CHECK(max_rel(g, cpu_off, n, NULL) <= REL_TOL);
+	free(g);
+	CHECK(gpu_shot_shadows(sh, "2", true, err, sizeof(err)));
+	const float blue[3] = { 0.2f, 0.4f, 1.0f };
+	CHECK(gpu_shot_shadow_look(sh, "2", 0.6f, blue, err, sizeof(err)));
+	g = image_of(on, true, sh);
+	float *want = malloc(n * sizeof(float));
+	for (size_t i = 0; i < n; i++) {
+		float w = i % 4 == 3 ? 0.0f : 0.6f * (1.0f - blue[i % 4]);
+		want[i] = cpu_off[i] * (1.0f - w) + cpu_on[i] * w;
+	}
+	size_t at = 0;
+	double r = max_rel(g, want, n, &at);
+	if (!(r <= REL_TOL))
+		fprintf(stderr, "shadow look: %g at %zu\n", r, at);
+	CHECK(r <= REL_TOL);
+	const float bad[3] = { 0, 2, 0 };
+	CHECK(!gpu_shot_shadow_look(sh, "2", 1.5f, blue, err, sizeof(err)));
+	CHECK(!gpu_shot_shadow_look(sh, "2", 0.5f, bad, err, sizeof(err)));
+	/* and back to plain shadows */
+	const float black[3] = { 0, 0, 0 };
+	CHECK(gpu_shot_shadow_look(sh, "2", 1.0f, black, err, sizeof(err)));
+	free(g);
+	g = image_of(on, true, sh);
+	CHECK(max_rel(g, cpu_on, n, NULL) <= REL_TOL);
+	free(g);
+	free(want);
+	free(cpu_on);
+	free(cpu_off);
+	gpu_shot_close(sh);
+}
+
+/* Editable surface parameters, and adding and removing lights, against
+ * the CPU resolver of shots baked with the RIB edited the same way. */
+static void test_surface_and_lights(void)
+{
+	char base[512], kd[512], more[512], err[256];
+	const char *flags = "--dynamic-surface Kd";
+	CHECK(bake("sbase", shadow_scene, "SHADOWNAME", "", flags, base, sizeof(base)));
+	/* the scene without shadows, then edited */
+	char text[4096];
+	const char *mark = strstr(shadow_scene, "SHADOWNAME");
+	snprintf(text, sizeof(text), "%.*s%s", (int)(mark - shadow_scene), shadow_scene,
+		 mark + strlen("SHADOWNAME"));
+	CHECK(bake("skd", text, "\"Kd\" 0.7", "\"Kd\" 0.25", flags, kd, sizeof(kd)));
+	CHECK(bake("smore", shadow_scene, "SHADOWNAME\n",
+		   "\n  LightSource \"pointlight\" 7 \"intensity\" 3 \"from\" [1 1 0]"
+		   " \"lightcolor\" [1 0.5 0.2]\n", flags, more, sizeof(more)));
+	char shaders[1024];
+	const char *src = getenv("RELIGHT_SOURCE_DIR");
+	snprintf(shaders, sizeof(shaders), "%s/shaders", src ? src : ".");
+	struct gpu_shot_opts o = { .texture_path = workdir, .shader_path = shaders };
+	struct gpu_shot *sh = gpu_shot_open(ctx, base, &o);
+	CHECK(sh != NULL);
+	if (!sh)
+		return;
+	size_t n = (size_t)W * H * 4;
+	float v = 0.25f;
+	CHECK(!gpu_shot_set_surface(sh, "plastic", "Ks", &v, 1, err, sizeof(err)));
+	CHECK(strstr(err, "--dynamic-surface") != NULL);
+	CHECK(!gpu_shot_set_surface(sh, "nosuch", "Kd", &v, 1, err, sizeof(err)));
+	CHECK(gpu_shot_set_surface(sh, "plastic", "Kd", &v, 1, err, sizeof(err)));
+	float *g = image_of(base, true, sh), *c = image_of(kd, false, NULL);
+	CHECK(max_rel(g, c, n, NULL) <= REL_TOL);
+	free(g);
+	free(c);
+	v = 0.7f;
+	CHECK(gpu_shot_set_surface(sh, "plastic", "Kd", &v, 1, err, sizeof(err)));
+	/* a point light: a shader the shot does not have, compiled when added */
+	const float xf[16] = { 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 };
+	int k = gpu_shot_add_light(sh, "7", "pointlight", xf, err, sizeof(err));
+	if (k < 0)
+		fprintf(stderr, "add light: %s\n", err);
+	CHECK(k >= 0);
+	CHECK(gpu_shot_add_light(sh, "7", "pointlight", xf, err, sizeof(err)) < 0);
+	CHECK(gpu_shot_add_light(sh, "8", "plastic", xf, err, sizeof(err)) < 0);
+	float from[3] = { 1, 1, 0 }, col[3] = { 1, 0.5f, 0.2f }, in = 3;
+	CHECK(gpu_shot_set(sh, "7", "from", from, 3, err, sizeof(err)));
+	CHECK(gpu_shot_set(sh, "7", "lightcolor", col, 3, err, sizeof(err)));
+	CHECK(gpu_shot_set(sh, "7", "intensity", &in, 1, err, sizeof(err)));
+	g = image_of(base, true, sh);
+	c = image_of(more, false, NULL);
+	size_t at = 0;
+	double r = max_rel(g, c, n, &at);
+	if (!(r <= REL_TOL))
+		fprintf(stderr, "added light: %g at %zu\n", r, at);
+	CHECK(r <= REL_TOL);
+	free(g);
+	free(c);
+	/* removing it gives the shot back */
+	CHECK(gpu_shot_remove_light(sh, "7", err, sizeof(err)));
+	CHECK(gpu_shot_find_light(sh, "7") < 0);
+	CHECK(!gpu_shot_set(sh, "7", "intensity", &in, 1, err, sizeof(err)));
+	g = image_of(base, true, sh);
+	c = image_of(base, false, NULL);
+	CHECK(max_rel(g, c, n, NULL) <= REL_TOL);
+	free(g);
+	free(c);
+	gpu_shot_close(sh);
+}
+
 int main(int argc, char **argv)
 {
 	if (argc < 2) {
@@ -303,6 +498,8 @@ int main(int argc, char **argv)
 			 argv[1]);
 	if (!mkdtemp(dir))
 		return 1;
+	snprintf(workdir, sizeof(workdir), "%s", dir);
+	snprintf(relight_cmd, sizeof(relight_cmd), "%s", relight);
 	char cmd[2048];
 	snprintf(cmd, sizeof(cmd), "cd %s && cat > hard.rib && %s bake -q -o hard.shot.exr hard.rib",
 		 dir, relight);
@@ -329,8 +526,12 @@ int main(int argc, char **argv)
 			RUN(test_refused);
 			RUN(test_mute_solo_link);
 			RUN(test_graph_work);
-			RUN(test_stability);
+			if (!getenv("RELIGHT_TEST_QUICK"))
+				RUN(test_stability);
 			gpu_shot_close(shot);
+			shot = NULL;
+			RUN(test_shadow_look);
+			RUN(test_surface_and_lights);
 		}
 		rc = test_finish();
 	}
