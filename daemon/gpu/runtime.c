@@ -1411,6 +1411,7 @@ void gpu_shot_close(struct gpu_shot *s)
 		gpu_buffer_destroy(L->link);
 		free(L->link_cpu);
 	}
+	free(s->lights);
 	for (int b = 0; b < NBANDS; b++) {
 		for (uint32_t i = 0; s->cached[b] && i < s->nlights; i++)
 			lstate_free(&s->cached[b][i]);
