@@ -9,10 +9,13 @@
 #include "graph.h"
 #include "bake/resolve.h"
 #include "runtime.h"
+#include "png.h"
+#include "shotfile.h"
 #include "texture.h"
 
 #include <errno.h>
 #include <getopt.h>
+#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -53,7 +56,11 @@ static void usage(FILE *out)
 		"                       vectors in the light's own space, as in the RIB),\n"
 		"                       sixteen for a matrix. Repeatable.\n"
 		"  -o, --output FILE    The image (OpenEXR, RGBA float; default: SHOT with\n"
-		"                       .shot.exr replaced by .preview.exr)\n"
+		"                       .shot.exr replaced by .preview.exr). On the GPU, a\n"
+		"                       name ending in .png writes the runtime's 8-bit sRGB\n"
+		"                       output (colour over black, alpha)\n"
+		"  --half               On the GPU, write the runtime's linear half output\n"
+		"                       (RGBA half floats) instead of float\n"
 		"  --json               Print timings and counts as one JSON object. On the GPU:\n"
 		"                       full_ms (every light, from nothing to the final level),\n"
 		"                       edit_ms (after the --set edits, levels 0 to 3 refined\n"
@@ -119,8 +126,55 @@ static bool write_rgba(const char *path, uint32_t w, uint32_t h, float *rgba)
 }
 
 /* The preview on the GPU runtime. */
+static bool ends_with(const char *s, const char *suffix)
+{
+	size_t n = strlen(s), m = strlen(suffix);
+	return n >= m && !strcmp(s + n - m, suffix);
+}
+
+/* A half's bits as a float. */
+static float half_value(uint16_t h)
+{
+	int e = (h >> 10) & 31, m = h & 1023;
+	float v = e == 0 ? ldexpf((float)m, -24) : ldexpf((float)(m | 1024), e - 25);
+	return h & 0x8000 ? -v : v;
+}
+
+/* Write level @level of @s: PNG (the GPU's 8-bit sRGB), EXR of half or float. */
+static bool write_gpu_image(struct gpu_shot *s, int level, const char *path, bool half)
+{
+	uint32_t w = gpu_shot_width(s), h = gpu_shot_height(s);
+	size_t n = (size_t)w * h;
+	bool ok;
+	if (ends_with(path, ".png")) {
+		uint32_t *px = malloc(n * sizeof(uint32_t) + 4);
+		uint8_t *rgba = malloc(n * 4 + 4);
+		ok = px && rgba && gpu_shot_read_srgb8(s, level, px);
+		for (size_t i = 0; ok && i < n; i++)
+			for (int c = 0; c < 4; c++)
+				rgba[i * 4 + (size_t)c] = (uint8_t)(px[i] >> (8 * c));
+		ok = ok && reyes_png_write(path, rgba, w, h, 4, stderr);
+		free(px);
+		free(rgba);
+		return ok;
+	}
+	float *f = malloc(n * 4 * sizeof(float) + 4);
+	uint16_t *hv = half ? malloc(n * 4 * sizeof(uint16_t) + 4) : NULL;
+	ok = f && (half ? hv && gpu_shot_read_half(s, level, hv) : gpu_shot_read_rgba(s, level, f));
+	for (size_t i = 0; ok && half && i < n * 4; i++)
+		f[i] = half_value(hv[i]);
+	static const char *const names[4] = { "R", "G", "B", "A" };
+	struct reyes_image im = { .width = w, .height = h, .nchannels = 4,
+				  .channel_names = (const char **)names, .data = f };
+	ok = ok && reyes_image_write_exr(path, &im, half, stderr);
+	free(f);
+	free(hv);
+	return ok;
+}
+
 static int preview_gpu(const char *shot, const char *output, int level,
-		       const struct resolve_edit *edits, size_t nedits, bool json, bool quiet)
+		       const struct resolve_edit *edits, size_t nedits, bool json, bool quiet,
+		       bool half)
 {
 	char err[1024];
 	struct gpu_ctx *ctx = gpu_create(err, sizeof(err));
@@ -147,8 +201,7 @@ static int preview_gpu(const char *shot, const char *output, int level,
 		edit_ms += lv[L].ms;
 	}
 	uint32_t w = s ? gpu_shot_width(s) : 0, h = s ? gpu_shot_height(s) : 0;
-	float *rgba = ok ? malloc((size_t)w * h * 4 * sizeof(float)) : NULL;
-	ok = ok && rgba && gpu_shot_read_rgba(s, level, rgba) && write_rgba(output, w, h, rgba);
+	ok = ok && write_gpu_image(s, level, output, half);
 	if (ok && json) {
 		printf("{\"device\": \"%s\", \"width\": %u, \"height\": %u, \"level\": %d, "
 		       "\"samples\": %llu, \"lights\": %u, \"gpu_bytes\": %zu, "
@@ -169,7 +222,6 @@ static int preview_gpu(const char *shot, const char *output, int level,
 			"the final level in %.1f ms (level 0 in %.1f ms)\n", output, w, h,
 			gpu_renderer(ctx), full.ms, edit_ms, lv[0].ms);
 	}
-	free(rgba);
 	gpu_shot_close(s);
 	gpu_destroy(ctx);
 	return ok ? CMD_OK : CMD_FAILED;
@@ -177,7 +229,7 @@ static int preview_gpu(const char *shot, const char *output, int level,
 
 int cmd_preview(int argc, char **argv)
 {
-	bool cpu = false, json = false, quiet = false;
+	bool cpu = false, json = false, quiet = false, half = false;
 	int level = RESOLVE_FINAL;
 	enum { MAX_EDITS = 256, MAX_EDIT_LEN = 256 };
 	struct resolve_edit edits[MAX_EDITS];
@@ -191,6 +243,7 @@ int cmd_preview(int argc, char **argv)
 		{ "set", required_argument, NULL, 's' },
 		{ "output", required_argument, NULL, 'o' },
 		{ "json", no_argument, NULL, 'j' },
+		{ "half", no_argument, NULL, 'H' },
 		{ "quiet", no_argument, NULL, 'q' },
 		{ NULL, 0, NULL, 0 },
 	};
@@ -234,6 +287,9 @@ int cmd_preview(int argc, char **argv)
 		case 'j':
 			json = true;
 			break;
+		case 'H':
+			half = true;
+			break;
 		case 'q':
 			quiet = true;
 			break;
@@ -251,8 +307,12 @@ int cmd_preview(int argc, char **argv)
 	char *out_alloc = output ? NULL : default_output(shot);
 	if (!output)
 		output = out_alloc;
+	if (cpu && (half || ends_with(output ? output : "", ".png"))) {
+		free(out_alloc);
+		return usage_error("--half and PNG output are the GPU runtime's; not with --cpu");
+	}
 	if (!cpu) {
-		int rc = output ? preview_gpu(shot, output, level, edits, nedits, json, quiet)
+		int rc = output ? preview_gpu(shot, output, level, edits, nedits, json, quiet, half)
 				: CMD_FAILED;
 		free(out_alloc);
 		return rc;

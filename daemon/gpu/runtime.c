@@ -167,7 +167,8 @@ struct gpu_shot {
 	uint64_t level_entries[NBANDS];
 	struct gpu_buffer *base, *cache, *colors, *scratch, *zero;
 	struct gpu_buffer *rgba[NBANDS], *px8;
-	struct gpu_program *accumulate, *accumulate_d, *combine, *clear;
+	struct gpu_program *accumulate, *accumulate_d, *combine, *clear, *half;
+	struct gpu_buffer *px16;
 
 	/* the light cache: per band, per light, what the cache holds of it */
 	struct lstate *cached[NBANDS];
@@ -406,6 +407,22 @@ static const char combine_src[] =
 	"		float v = float(double(texelFetch(u_base, k + c).x) + cache[k + c]);\n"
 	"		dst[k + c] = isnan(v) || isinf(v) ? 0.0 : v;\n"
 	"	}\n"
+	"}\n";
+
+/* Linear half output: RGBA floats to two uints of packed halves a pixel,
+ * clamped to the largest half (the resolve leaves no NaN or Inf). */
+static const char half_src[] =
+	"#version 430 core\n"
+	"layout(local_size_x = 64) in;\n"
+	"layout(std430, binding = 0) readonly buffer Src { vec4 src[]; };\n"
+	"layout(std430, binding = 1) buffer Dst { uint dst[]; };\n"
+	"uniform int u_count;\n"
+	"void main() {\n"
+	"	uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 64u;\n"
+	"	if (i >= uint(u_count)) return;\n"
+	"	vec4 v = clamp(src[i], vec4(-65504.0), vec4(65504.0));\n"
+	"	dst[2u * i] = packHalf2x16(v.xy);\n"
+	"	dst[2u * i + 1u] = packHalf2x16(v.zw);\n"
 	"}\n";
 
 /* Clear the light cache over ids [u_first, u_first + u_count). */
@@ -1180,8 +1197,9 @@ static bool warm_up(struct gpu_shot *s)
 	for (int L = 0; L < NBANDS; L++)
 		if (!gpu_ifb_resolve(s->ifb, s->colors, s->nsamples, L, s->rgba[L]))
 			return fail(s, "running the resolve failed");
+	struct gpu_binding hb[2] = { { 0, true, s->rgba[0] }, { 1, true, s->px16 } };
 	return gpu_encode_srgb8(s->ctx, s->rgba[0], s->width * s->height, s->px8) &&
-	       gpu_finish(s->ctx);
+	       gpu_dispatch(s->ctx, s->half, hb, 2, s->width * s->height) && gpu_finish(s->ctx);
 }
 
 static void build_graph(struct gpu_shot *s)
@@ -1285,7 +1303,8 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	s->accumulate_d = ok ? gpu_program(ctx, accumulate_d_src, s->diag) : NULL;
 	s->combine = ok ? gpu_program(ctx, combine_src, s->diag) : NULL;
 	s->clear = ok ? gpu_program(ctx, clear_src, s->diag) : NULL;
-	if (ok && (!s->accumulate || !s->accumulate_d || !s->combine || !s->clear))
+	s->half = ok ? gpu_program(ctx, half_src, s->diag) : NULL;
+	if (ok && (!s->accumulate || !s->accumulate_d || !s->combine || !s->clear || !s->half))
 		ok = fail(s, "the runtime's own GPU programs do not compile");
 	int nsf = cJSON_GetArraySize(sfs);
 	s->surfaces = rl_xcalloc((size_t)nsf + 1, sizeof(*s->surfaces));
@@ -1330,7 +1349,8 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 		size_t ib = (size_t)s->width * s->height * 4 * sizeof(float);
 		for (int L = 0; ok && L < NBANDS; L++)
 			ok = (s->rgba[L] = buffer(s, ib, NULL)) != NULL;
-		ok = ok && (s->px8 = buffer(s, (size_t)s->width * s->height * 4, NULL));
+		ok = ok && (s->px8 = buffer(s, (size_t)s->width * s->height * 4, NULL)) &&
+		     (s->px16 = buffer(s, (size_t)s->width * s->height * 8, NULL));
 	}
 	/* links: as the bake's light sets left them */
 	const cJSON *sets = cJSON_GetObjectItemCaseSensitive(s->meta, "lightsets");
@@ -1429,6 +1449,7 @@ void gpu_shot_close(struct gpu_shot *s)
 	gpu_buffer_destroy(s->scratch);
 	gpu_buffer_destroy(s->zero);
 	gpu_buffer_destroy(s->px8);
+	gpu_buffer_destroy(s->px16);
 	reyes_texsys_destroy(s->tex);
 	graph_destroy(s->graph);
 	cJSON_Delete(s->meta);
@@ -1682,6 +1703,16 @@ bool gpu_shot_read_rgba(struct gpu_shot *s, int level, float *rgba)
 		return false;
 	return gpu_buffer_read(s->rgba[level], 0, (size_t)s->width * s->height * 4 * sizeof(float),
 			       rgba);
+}
+
+bool gpu_shot_read_half(struct gpu_shot *s, int level, uint16_t *rgba)
+{
+	if (level < 0 || level >= NBANDS || graph_node_runs(s->resolve[level]) == 0)
+		return false;
+	uint32_t n = s->width * s->height;
+	struct gpu_binding hb[2] = { { 0, true, s->rgba[level] }, { 1, true, s->px16 } };
+	return gpu_dispatch(s->ctx, s->half, hb, 2, n) &&
+	       gpu_buffer_read(s->px16, 0, (size_t)n * 8, rgba);
 }
 
 bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px)

@@ -175,6 +175,12 @@ bool gpu_shot_render(struct gpu_shot *s, int level, struct gpu_shot_stats *st);
 /** Level @level's image: width * height premultiplied linear RGBA floats. */
 bool gpu_shot_read_rgba(struct gpu_shot *s, int level, float *rgba);
 
+/**
+ * Level @level's image as linear half floats, RGBA (IEEE 754 binary16 bit
+ * patterns, converted on the GPU; beyond 65504 clamped to it).
+ */
+bool gpu_shot_read_half(struct gpu_shot *s, int level, uint16_t *rgba);
+
 /** Level @level's image as 8-bit sRGB (RGBA8, R in the low byte), encoded on the GPU. */
 bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px);
 

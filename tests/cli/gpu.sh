@@ -167,6 +167,16 @@ for level in 0 1 2; do
 	expect_status 0
 done
 
+# The runtime's outputs: linear half (within half precision of the CPU's
+# floats) and 8-bit sRGB as PNG; both are the GPU's, not with --cpu.
+run "half output" bash -c "cd '$dir' && '$relight' preview -q --half -o h.exr crowd.shot.exr && '$relight' preview -q --cpu -o c.exr crowd.shot.exr && '$relight' diff --fail-rel 1e-3 c.exr h.exr"
+expect_status 0
+run "png output" bash -c "cd '$dir' && '$relight' preview -q -o p.png crowd.shot.exr && head -c 8 p.png | od -An -tx1"
+expect_status 0
+expect_stdout "89 50 4e 47 0d 0a 1a 0a"
+run "--half with --cpu" "$relight" preview --cpu --half -o x.exr "$dir/crowd.shot.exr"
+expect_status 2
+
 # Refused edits: a clear error, exit status 1, no image.
 for bad in 3.intensity=nan 3.intensity=inf 3.coneangle=4 3.coneangle=-0.1 3.from=1,2 9.intensity=1 3.nope=1 3.shadowname=1; do
 	run "refuse $bad" bash -c "cd '$dir' && rm -f bad.exr && '$relight' preview -q --set $bad -o bad.exr crowd.shot.exr"

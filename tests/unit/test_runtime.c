@@ -19,7 +19,9 @@
  *
  * Skips (exit 77) without an EGL context.
  */
+#include "color.h"
 #include "gpu.h"
+#include "shotfile.h"
 #include "graph.h"
 #include "bake/resolve.h"
 #include "runtime.h"
@@ -141,6 +143,42 @@ static float *cpu_image(int level, const struct resolve_edit *e, size_t ne)
 		return calloc((size_t)W * H * 4, sizeof(float));
 	}
 	return r.rgba;
+}
+
+/* A half's bits as a float. */
+static float half_value(uint16_t h)
+{
+	int e = (h >> 10) & 31, m = h & 1023;
+	float v = e == 0 ? ldexpf((float)m, -24) : ldexpf((float)(m | 1024), e - 25);
+	return h & 0x8000 ? -v : v;
+}
+
+/* The linear half and 8-bit outputs: exactly the CPU's conversions of the floats. */
+static void test_outputs(void)
+{
+	size_t n = (size_t)W * H;
+	float *f = gpu_image(3);
+	uint16_t *h = calloc(n * 4, sizeof(uint16_t));
+	uint32_t *px = calloc(n, sizeof(uint32_t));
+	CHECK(gpu_shot_read_half(shot, 3, h) && gpu_shot_read_srgb8(shot, 3, px));
+	size_t bad_half = 0, bad8 = 0;
+	for (size_t i = 0; i < n * 4; i++)
+		bad_half += half_value(h[i]) != shot_half_round(f[i]);
+	for (size_t i = 0; i < n; i++) {
+		uint32_t want = 0;
+		for (int c = 0; c < 3; c++)
+			want |= (uint32_t)rl_srgb8(f[i * 4 + (size_t)c]) << (8 * c);
+		want |= (uint32_t)rl_unorm8(f[i * 4 + 3]) << 24;
+		bad8 += px[i] != want;
+	}
+	if (bad_half || bad8)
+		fprintf(stderr, "outputs: %zu half values and %zu 8-bit pixels differ\n", bad_half,
+			bad8);
+	CHECK(bad_half == 0);
+	CHECK(bad8 == 0);
+	free(f);
+	free(h);
+	free(px);
 }
 
 static void test_matches_cpu(void)
@@ -523,6 +561,7 @@ int main(int argc, char **argv)
 			W = gpu_shot_width(shot);
 			H = gpu_shot_height(shot);
 			RUN(test_matches_cpu);
+			RUN(test_outputs);
 			RUN(test_refused);
 			RUN(test_mute_solo_link);
 			RUN(test_graph_work);
