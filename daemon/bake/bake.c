@@ -20,6 +20,7 @@
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 #include <time.h>
 
 /* A run of consecutive ids shaded in one grid. */
@@ -386,6 +387,25 @@ static int cmp_weight_desc(const void *pa, const void *pb)
 
 /* ---- metadata ---- */
 
+/*
+ * A shader's source as an absolute path, so that the shot can be previewed
+ * from any directory (shaders found along a relative search path would
+ * otherwise be looked for relative to wherever the preview runs).
+ */
+static void add_source(cJSON *j, const char *path)
+{
+	char cwd[4096];
+	if (path && path[0] != '/' && getcwd(cwd, sizeof(cwd))) {
+		size_t n = strlen(cwd) + strlen(path) + 2;
+		char *abs = rl_xmalloc(n);
+		snprintf(abs, n, "%s/%s", cwd, path[0] == '.' && path[1] == '/' ? path + 2 : path);
+		cJSON_AddStringToObject(j, "source", abs);
+		free(abs);
+		return;
+	}
+	cJSON_AddStringToObject(j, "source", path ? path : "");
+}
+
 static cJSON *matrix_json(const float m[16])
 {
 	cJSON *a = cJSON_CreateArray();
@@ -423,7 +443,7 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 		cJSON *j = cJSON_CreateObject();
 		cJSON_AddStringToObject(j, "name", l->handle ? l->handle : "");
 		cJSON_AddStringToObject(j, "shader", l->shader.name);
-		cJSON_AddStringToObject(j, "source", l->shader.prog->source_path);
+		add_source(j, l->shader.prog->source_path);
 		cJSON_AddStringToObject(j, "source_hash", l->shader.prog->source_hash);
 		cJSON_AddItemToObject(j, "params", params_json(&l->shader));
 		cJSON_AddItemToObject(j, "shader_to_world", matrix_json(l->shader.shader_to_world));
@@ -443,7 +463,7 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 		const struct sl_program *p = g->prog;
 		cJSON *j = cJSON_CreateObject();
 		cJSON_AddStringToObject(j, "shader", g->shader);
-		cJSON_AddStringToObject(j, "source", p->source_path);
+		add_source(j, p->source_path);
 		cJSON_AddStringToObject(j, "source_hash", p->source_hash);
 		cJSON_AddStringToObject(j, "table", g->table);
 		cJSON_AddNumberToObject(j, "first_id", g->first_id);

@@ -1202,6 +1202,8 @@ static bool warm_up(struct gpu_shot *s)
 	       gpu_dispatch(s->ctx, s->half, hb, 2, s->width * s->height) && gpu_finish(s->ctx);
 }
 
+static void check_linear(struct gpu_shot *s, struct surface *sf);
+
 static void build_graph(struct gpu_shot *s)
 {
 	for (uint32_t i = 0; i < s->nlights; i++) {
@@ -1331,7 +1333,7 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 		fprintf(stderr, "\n");
 	size_t cbytes = (size_t)s->nsamples * 3 * sizeof(float) + 16;
 	size_t sbytes = 16;
-	for (uint32_t i = 0; i < s->nsurfaces; i++) {
+	for (uint32_t i = 0; ok && i < s->nsurfaces; i++) {
 		size_t b = (size_t)s->surfaces[i].nrows * 4;
 		for (uint32_t k = 0; k <= s->nlshaders; k++) {
 			const struct kernel *kk = k < s->nlshaders ? &s->surfaces[i].lk[k]
@@ -1375,6 +1377,8 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	if (ok)
 		build_graph(s);
 	ok = ok && warm_up(s);
+	for (uint32_t i = 0; ok && i < s->nsurfaces; i++)
+		check_linear(s, &s->surfaces[i]);
 	shot_free(f);
 	if (!ok) {
 		gpu_shot_close(s);
@@ -1727,41 +1731,158 @@ bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px)
 /* ------------------------------------------------------------------------ */
 /* Measuring                                                                 */
 
-/* Float operations per sample of surface @sf lit by @L, on the interpreter. */
-static double count_flops(struct gpu_shot *s, struct surface *sf, struct light *L)
+static bool tex_texture(void *user, const struct sl_tex_lookup *q)
 {
-	uint32_t n = sf->nrows < 1024 ? (uint32_t)sf->nrows : 1024;
+	return reyes_tex_texture(((struct sl_lighthost *)user)->owner, q);
+}
+
+static bool tex_environment(void *user, const struct sl_tex_lookup *q)
+{
+	return reyes_tex_environment(((struct sl_lighthost *)user)->owner, q);
+}
+
+static bool tex_shadow(void *user, const struct sl_tex_lookup *q)
+{
+	return reyes_tex_shadow(((struct sl_lighthost *)user)->owner, q);
+}
+
+/*
+ * Run surface @sf's dynamic program on the interpreter over its first @n
+ * records (@rec), lit by lights @lights (@nl of them, with their baked
+ * parameters). Fills @ci (3 floats a sample, NULL: not wanted) and adds the
+ * float operations counted to *@ops (NULL: not counted). Maps are looked up
+ * as the CPU resolver does, without derivative stencils (filter regions of
+ * one point): what is run here needs no exact shadows.
+ */
+static bool run_cpu(struct gpu_shot *s, struct surface *sf, const float *rec, uint32_t n,
+		    struct light *const *lights, uint32_t nl, float *ci, uint64_t *ops)
+{
 	const struct sl_glsl_layout *lay = &sf->base.layout;
-	uint32_t stride = lay->in_stride;
-	float *rec = rl_xmalloc(((size_t)n * stride + 1) * sizeof(float));
 	struct sl_exec *x = sl_exec_create(sf->spec->dynamic, n);
-	struct sl_exec *lx = sl_exec_create(s->lshaders[L->shader].prog, n);
-	const cJSON *lm = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(s->meta, "lights"),
-					     (int)(L - s->lights));
+	struct sl_exec **lx = rl_xcalloc(nl + 1, sizeof(*lx));
+	float (*mats)[16] = rl_xcalloc(nl + 1, sizeof(*mats));
+	const cJSON *lms = cJSON_GetObjectItemCaseSensitive(s->meta, "lights");
 	const cJSON *psets = cJSON_GetObjectItemCaseSensitive(sf->meta, "param_sets");
-	double per = -1.0;
-	if (x && lx && gpu_buffer_read(sf->records, 0, (size_t)n * stride * sizeof(float), rec) &&
-	    shot_meta_set_params(lx, cJSON_GetObjectItemCaseSensitive(lm, "params"), s->path,
-				 s->diag) &&
-	    (!cJSON_GetArraySize(psets) ||
-	     shot_meta_set_params(x, cJSON_GetArrayItem(psets, 0), s->path, s->diag)) &&
-	    sl_spec_bind_cache(sf->spec, x, n, rec, stride, lay->in_offset)) {
+	bool ok = x && (!cJSON_GetArraySize(psets) ||
+			shot_meta_set_params(x, cJSON_GetArrayItem(psets, 0), s->path, s->diag));
+	for (uint32_t i = 0; ok && i < nl; i++) {
+		const cJSON *lm = cJSON_GetArrayItem(lms, (int)(lights[i] - s->lights));
+		lx[i] = sl_exec_create(s->lshaders[lights[i]->shader].prog, n);
+		memcpy(mats[i], lights[i]->to_camera, sizeof(mats[i]));
+		ok = lx[i] && shot_meta_set_params(lx[i], cJSON_GetObjectItemCaseSensitive(lm, "params"),
+						   s->path, s->diag);
+	}
+	ok = ok && sl_spec_bind_cache(sf->spec, x, n, rec, lay->in_stride, lay->in_offset);
+	if (ok) {
 		struct sl_lighthost lh;
-		sl_lighthost_init(&lh, &lx, 1);
-		lh.light_shader_mats = (const float (*)[16])L->to_camera;
+		sl_lighthost_init(&lh, lx, (int)nl);
+		lh.light_shader_mats = (const float (*)[16])mats;
 		static const char *const space_names[] = { "world" };
 		lh.space_names = space_names;
 		lh.space_mats = (const float (*)[16])s->w2c;
 		lh.nspaces = 1;
-		sl_exec_count_ops(x, true);
-		sl_exec_count_ops(lx, true);
-		if (sl_exec_run(x, &lh.host) && n)
-			per = (double)(sl_exec_ops(x) + sl_exec_ops(lx)) / n;
+		lh.owner = s->tex;
+		lh.host.texture = tex_texture;
+		lh.host.environment = tex_environment;
+		lh.host.shadow = tex_shadow;
+		sl_exec_count_ops(x, ops != NULL);
+		for (uint32_t i = 0; i < nl; i++)
+			sl_exec_count_ops(lx[i], ops != NULL);
+		ok = sl_exec_run(x, &lh.host);
 	}
+	if (ok && ops) {
+		*ops += sl_exec_ops(x);
+		for (uint32_t i = 0; i < nl; i++)
+			*ops += sl_exec_ops(lx[i]);
+	}
+	if (ok && ci) {
+		bool vary;
+		const float *c = sl_exec_global(x, SL_GLOBAL_CI, &vary);
+		uint32_t st = sl_exec_stride(x);
+		for (uint32_t i = 0; i < n; i++)
+			for (int k = 0; k < 3; k++)
+				ci[i * 3 + (uint32_t)k] =
+					c ? (vary ? c[(size_t)k * st + i] : c[k]) : 0.0f;
+	}
+	for (uint32_t i = 0; i < nl; i++)
+		sl_exec_destroy(lx[i]);
+	free(lx);
+	free(mats);
 	sl_exec_destroy(x);
-	sl_exec_destroy(lx);
+	return ok;
+}
+
+/* The first @n records of @sf, read back from the GPU (free() them). */
+static float *records_of(struct surface *sf, uint32_t n)
+{
+	size_t bytes = (size_t)n * sf->base.layout.in_stride * sizeof(float);
+	float *rec = rl_xmalloc(bytes + sizeof(float));
+	if (!gpu_buffer_read(sf->records, 0, bytes, rec)) {
+		free(rec);
+		return NULL;
+	}
+	return rec;
+}
+
+/* Float operations per sample of surface @sf lit by @L, on the interpreter. */
+static double count_flops(struct gpu_shot *s, struct surface *sf, struct light *L)
+{
+	uint32_t n = sf->nrows < 1024 ? (uint32_t)sf->nrows : 1024;
+	float *rec = n ? records_of(sf, n) : NULL;
+	uint64_t ops = 0;
+	bool ok = rec && run_cpu(s, sf, rec, n, &L, 1, NULL, &ops);
 	free(rec);
-	return per;
+	return ok ? (double)ops / n : -1.0;
+}
+
+/*
+ * The light cache adds lights' contributions one by one, which is right
+ * for a surface linear in its lights (the library's illuminance loops are).
+ * Check it on a few samples: the colour with every light against the colour
+ * with none plus each light's difference. A warning, not an error: the
+ * preview still runs, but differs from the final frame.
+ */
+static void check_linear(struct gpu_shot *s, struct surface *sf)
+{
+	enum { N = 64, MAXL = 8 };
+	uint32_t n = sf->nrows < N ? (uint32_t)sf->nrows : N;
+	uint32_t nl = 0;
+	struct light *ls[MAXL];
+	for (uint32_t i = 0; i < s->nlights && nl < MAXL; i++)
+		ls[nl++] = &s->lights[i];
+	float *rec = n && nl > 1 ? records_of(sf, n) : NULL;
+	if (!rec)
+		return;
+	float *c0 = rl_xmalloc(n * 3 * sizeof(float)), *ck = rl_xmalloc(n * 3 * sizeof(float));
+	float *all = rl_xmalloc(n * 3 * sizeof(float));
+	double *sum = rl_xcalloc(n * 3, sizeof(double));
+	bool ok = run_cpu(s, sf, rec, n, NULL, 0, c0, NULL) && run_cpu(s, sf, rec, n, ls, nl, all, NULL);
+	for (uint32_t i = 0; ok && i < n * 3; i++)
+		sum[i] = c0[i];
+	for (uint32_t k = 0; ok && k < nl; k++) {
+		ok = run_cpu(s, sf, rec, n, &ls[k], 1, ck, NULL);
+		for (uint32_t i = 0; ok && i < n * 3; i++)
+			sum[i] += (double)ck[i] - c0[i];
+	}
+	uint32_t off = 0;
+	for (uint32_t i = 0; ok && i < n; i++) {
+		bool bad = false;
+		for (int c = 0; c < 3; c++) {
+			double a = all[i * 3 + (uint32_t)c], b = sum[i * 3 + (uint32_t)c];
+			if (isfinite(a) && isfinite(b) && fabs(a - b) > 1e-3 * fmax(fabs(a), 1e-2))
+				bad = true;
+		}
+		off += bad;
+	}
+	if (off)
+		fprintf(s->diag, "relight: warning: %s: surface '%s' is not linear in its lights (%u "
+			"of %u samples checked): the light cache adds lights one by one, so its "
+			"preview differs from the final frame\n", s->path, sf->name, off, n);
+	free(rec);
+	free(c0);
+	free(ck);
+	free(all);
+	free(sum);
 }
 
 bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_profile *out,

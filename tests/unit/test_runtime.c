@@ -521,6 +521,50 @@ static void test_surface_and_lights(void)
 	gpu_shot_close(sh);
 }
 
+/* A surface that squares its lighting is not linear in its lights: loading says so. */
+static void test_nonlinear(void)
+{
+	char path[512], shot_nl[512];
+	snprintf(path, sizeof(path), "%s/nonlin.sl", workdir);
+	FILE *f = fopen(path, "w");
+	CHECK(f != NULL);
+	if (!f)
+		return;
+	fputs("surface nonlin() { normal Nf = faceforward(normalize(N), I);\n"
+	      "  color d = diffuse(Nf); Ci = d * d; Oi = Os; }\n", f);
+	fclose(f);
+	/* a second light on the ground, from above: two lights on the same samples */
+	char text[4096];
+	const char *wb = strstr(scene, "WorldBegin\n") + strlen("WorldBegin\n");
+	snprintf(text, sizeof(text), "Option \"searchpath\" \"shader\" [\".:&\"]\n%.*s"
+		 "  LightSource \"distantlight\" 9 \"intensity\" 0.7 \"from\" [0 1 0] \"to\" [0.2 0 0.1]\n"
+		 "%s", (int)(wb - scene), scene, wb);
+	CHECK(bake("nonlin", text, "Surface \"plastic\" \"roughness\" 1e-6 \"Ks\" 0.8",
+		   "Surface \"nonlin\"", "", shot_nl, sizeof(shot_nl)));
+	char *buf = NULL;
+	size_t len = 0;
+	FILE *mem = open_memstream(&buf, &len);
+	struct gpu_shot_opts o = { .diag = mem };
+	struct gpu_shot *sh = gpu_shot_open(ctx, shot_nl, &o);
+	fclose(mem);
+	CHECK(sh != NULL);
+	CHECK(buf && strstr(buf, "surface 'nonlin' is not linear in its lights"));
+	if (!buf || !strstr(buf, "not linear"))
+		fprintf(stderr, "loading %s said: %s\n", shot_nl, buf ? buf : "");
+	free(buf);
+	/* the library's surfaces are: no such warning for them */
+	buf = NULL;
+	mem = open_memstream(&buf, &len);
+	o.diag = mem;
+	struct gpu_shot *lin = gpu_shot_open(ctx, shot_path, &o);
+	fclose(mem);
+	CHECK(lin != NULL);
+	CHECK(!buf || !strstr(buf, "not linear"));
+	free(buf);
+	gpu_shot_close(sh);
+	gpu_shot_close(lin);
+}
+
 int main(int argc, char **argv)
 {
 	if (argc < 2) {
@@ -570,6 +614,7 @@ int main(int argc, char **argv)
 			gpu_shot_close(shot);
 			shot = NULL;
 			RUN(test_shadow_look);
+			RUN(test_nonlinear);
 			RUN(test_surface_and_lights);
 		}
 		rc = test_finish();
