@@ -23,8 +23,10 @@
  * shaded again with the cached parameters and subtracted. Unfrozen lights
  * are shaded on every change; freezing one adds its current contribution.
  * A sample's colour is its surface with no light, plus the cache, plus the
- * unfrozen lights. This relies on surfaces being linear in their lights,
- * which loading checks on a subset of samples on the CPU.
+ * unfrozen lights. The cache is float64: subtracting a contribution gives
+ * back the sum before it exactly. This relies on surfaces being linear in
+ * their lights; loading checks it on a few samples of each surface on the
+ * CPU and warns about a surface that is not.
  */
 #ifndef GPU_RUNTIME_H
 #define GPU_RUNTIME_H
