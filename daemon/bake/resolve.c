@@ -137,21 +137,6 @@ static bool load_lights(struct resolver *r, const struct resolve_opts *o)
 	return true;
 }
 
-static bool tex_texture(void *user, const struct sl_tex_lookup *q)
-{
-	return reyes_tex_texture(((struct sl_lighthost *)user)->owner, q);
-}
-
-static bool tex_environment(void *user, const struct sl_tex_lookup *q)
-{
-	return reyes_tex_environment(((struct sl_lighthost *)user)->owner, q);
-}
-
-static bool tex_shadow(void *user, const struct sl_tex_lookup *q)
-{
-	return reyes_tex_shadow(((struct sl_lighthost *)user)->owner, q);
-}
-
 /* A channel of a surface table by name: stored, constant or an alias. */
 static const float *channel(struct resolver *r, const struct shot_table *t, const cJSON *chans,
 			    const char *name, float **owned, int depth)
@@ -334,10 +319,7 @@ static bool shade_surface(struct resolver *r, const cJSON *s, const struct span 
 				struct sl_lighthost lh;
 				sl_lighthost_init(&lh, lx, nl);
 				lh.light_shader_mats = (const float (*)[16])lm;
-				lh.owner = r->tex;
-				lh.host.texture = tex_texture;
-				lh.host.environment = tex_environment;
-				lh.host.shadow = tex_shadow;
+				reyes_tex_serve(&lh, r->tex);
 				static const char *const space_names[] = { "world" };
 				lh.space_names = space_names;
 				lh.space_mats = (const float (*)[16])&r->w2c;

@@ -557,40 +557,37 @@ static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, 
 	       (!any_i || shade_pass(s, L, st, band, true, wi, dst));
 }
 
-/* colors = base + cache over band @band's samples. */
-static bool combine(struct gpu_shot *s, int band)
+/* Run @p over the sample ids of band @band (u_first: each run's first id). */
+static bool dispatch_band(struct gpu_shot *s, int band, struct gpu_program *p,
+			  const struct gpu_binding *b, uint32_t nb, const char *what)
 {
 	for (uint32_t si = 0; si < s->nsurfaces; si++) {
 		struct surface *sf = &s->surfaces[si];
 		for (size_t r = 0; r < sf->runs[band].len; r++) {
 			const struct run *ru = &sf->runs[band].data[r];
-			gpu_uniform_int(s->combine, "u_first", (int)(sf->id0 + ru->first));
-			struct gpu_binding b[3] = {
-				{ 0, false, s->base }, { 1, true, s->cache }, { 2, true, s->colors },
-			};
-			if (!gpu_dispatch(s->ctx, s->combine, b, 3, ru->count))
-				return fail(s, "combining the light cache failed");
+			gpu_uniform_int(p, "u_first", (int)(sf->id0 + ru->first));
+			if (!gpu_dispatch(s->ctx, p, b, nb, ru->count))
+				return fail(s, "%s failed", what);
 			count_dispatch(s, 0);
 		}
 	}
 	return true;
 }
 
+/* colors = base + cache over band @band's samples. */
+static bool combine(struct gpu_shot *s, int band)
+{
+	struct gpu_binding b[3] = {
+		{ 0, false, s->base }, { 1, true, s->cache }, { 2, true, s->colors },
+	};
+	return dispatch_band(s, band, s->combine, b, 3, "combining the light cache");
+}
+
 /* Zero the light cache over band @band's samples. */
 static bool clear_band(struct gpu_shot *s, int band)
 {
-	for (uint32_t si = 0; si < s->nsurfaces; si++) {
-		struct surface *sf = &s->surfaces[si];
-		for (size_t r = 0; r < sf->runs[band].len; r++) {
-			const struct run *ru = &sf->runs[band].data[r];
-			gpu_uniform_int(s->clear, "u_first", (int)(sf->id0 + ru->first));
-			struct gpu_binding b[1] = { { 0, true, s->cache } };
-			if (!gpu_dispatch(s->ctx, s->clear, b, 1, ru->count))
-				return fail(s, "clearing the light cache failed");
-			count_dispatch(s, 0);
-		}
-	}
-	return true;
+	struct gpu_binding b[1] = { { 0, true, s->cache } };
+	return dispatch_band(s, band, s->clear, b, 1, "clearing the light cache");
 }
 
 static bool light_on(const struct gpu_shot *s, uint32_t i)
@@ -1731,21 +1728,6 @@ bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px)
 /* ------------------------------------------------------------------------ */
 /* Measuring                                                                 */
 
-static bool tex_texture(void *user, const struct sl_tex_lookup *q)
-{
-	return reyes_tex_texture(((struct sl_lighthost *)user)->owner, q);
-}
-
-static bool tex_environment(void *user, const struct sl_tex_lookup *q)
-{
-	return reyes_tex_environment(((struct sl_lighthost *)user)->owner, q);
-}
-
-static bool tex_shadow(void *user, const struct sl_tex_lookup *q)
-{
-	return reyes_tex_shadow(((struct sl_lighthost *)user)->owner, q);
-}
-
 /*
  * Run surface @sf's dynamic program on the interpreter over its first @n
  * records (@rec), lit by lights @lights (@nl of them, with their baked
@@ -1781,10 +1763,7 @@ static bool run_cpu(struct gpu_shot *s, struct surface *sf, const float *rec, ui
 		lh.space_names = space_names;
 		lh.space_mats = (const float (*)[16])s->w2c;
 		lh.nspaces = 1;
-		lh.owner = s->tex;
-		lh.host.texture = tex_texture;
-		lh.host.environment = tex_environment;
-		lh.host.shadow = tex_shadow;
+		reyes_tex_serve(&lh, s->tex);
 		sl_exec_count_ops(x, ops != NULL);
 		for (uint32_t i = 0; i < nl; i++)
 			sl_exec_count_ops(lx[i], ops != NULL);

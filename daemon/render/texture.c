@@ -23,6 +23,7 @@
  *    Map depths <= 0 (or not finite) are empty: nothing there casts shadow.
  */
 #include "exr_internal.h"
+#include "lighthost.h"
 #include "mathlib.h"
 #include "noise.h"
 
@@ -896,6 +897,29 @@ bool reyes_tex_shadow_map(struct reyes_texsys *ts, const char *name,
 	out->bias = tx->f.has_bias ? tx->f.bias : DEFAULT_SHADOW_BIAS;
 	memcpy(out->camera_to_world, ts->camera_to_world, sizeof(out->camera_to_world));
 	return true;
+}
+
+static bool serve_texture(void *user, const struct sl_tex_lookup *q)
+{
+	return reyes_tex_texture(((struct sl_lighthost *)user)->owner, q);
+}
+
+static bool serve_environment(void *user, const struct sl_tex_lookup *q)
+{
+	return reyes_tex_environment(((struct sl_lighthost *)user)->owner, q);
+}
+
+static bool serve_shadow(void *user, const struct sl_tex_lookup *q)
+{
+	return reyes_tex_shadow(((struct sl_lighthost *)user)->owner, q);
+}
+
+void reyes_tex_serve(struct sl_lighthost *lh, struct reyes_texsys *ts)
+{
+	lh->owner = ts;
+	lh->host.texture = serve_texture;
+	lh->host.environment = serve_environment;
+	lh->host.shadow = serve_shadow;
 }
 
 /* ------------------------------------------------------------------------ */

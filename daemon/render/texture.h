@@ -71,6 +71,16 @@ void reyes_texsys_destroy(struct reyes_texsys *ts);
 bool reyes_tex_texture(struct reyes_texsys *ts, const struct sl_tex_lookup *q);
 bool reyes_tex_environment(struct reyes_texsys *ts, const struct sl_tex_lookup *q);
 bool reyes_tex_shadow(struct reyes_texsys *ts, const struct sl_tex_lookup *q);
+struct sl_lighthost;
+
+/**
+ * Answer @lh's texture(), environment() and shadow() lookups from @ts: sets
+ * lh->owner to @ts and the three host callbacks (for code that runs shaders
+ * through a light host outside the renderer: the CPU resolver, the GPU
+ * runtime's checks).
+ */
+void reyes_tex_serve(struct sl_lighthost *lh, struct reyes_texsys *ts);
+
 bool reyes_tex_info(struct reyes_texsys *ts, const char *name, const char *query, int type,
 		    int arraylen, float *out, const char **sout);
 
