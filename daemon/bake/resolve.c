@@ -169,16 +169,7 @@ static bool shade_surface(struct resolver *r, const cJSON *s, const struct span 
 	struct sl_program *prog = load_shader(r, s);
 	if (!prog)
 		return false;
-	const cJSON *dyn = cJSON_GetObjectItemCaseSensitive(s, "dynamic_params");
-	const char *names[256];
-	size_t nd = 0;
-	const cJSON *d;
-	cJSON_ArrayForEach(d, dyn)
-		if (cJSON_IsString(d) && nd < 256)
-			names[nd++] = d->valuestring;
-	const cJSON *ld = cJSON_GetObjectItemCaseSensitive(r->meta, "light_derivatives");
-	unsigned flags = SL_SPEC_CACHE_PARAMS | (cJSON_IsTrue(ld) ? SL_SPEC_LIGHT_DERIVATIVES : 0);
-	struct sl_spec *spec = sl_specialize_ex(prog, names, nd, flags, r->diag);
+	struct sl_spec *spec = shot_meta_specialize(r->meta, s, prog, r->diag);
 	bool ok = spec != NULL;
 	uint32_t stride = ok ? sl_spec_cache_layout(spec, NULL) : 0;
 	/* each float of a sample's record: its channel */

@@ -872,16 +872,7 @@ static bool load_surface(struct gpu_shot *s, const struct shot_file *f, uint32_t
 	if (!sf->prog)
 		return false;
 	sf->name = rl_xstrdup(sf->prog->name);
-	const cJSON *dyn = cJSON_GetObjectItemCaseSensitive(sf->meta, "dynamic_params");
-	const char *names[256];
-	size_t nd = 0;
-	const cJSON *d;
-	cJSON_ArrayForEach(d, dyn)
-		if (cJSON_IsString(d) && nd < 256)
-			names[nd++] = d->valuestring;
-	const cJSON *ld = cJSON_GetObjectItemCaseSensitive(s->meta, "light_derivatives");
-	unsigned flags = SL_SPEC_CACHE_PARAMS | (cJSON_IsTrue(ld) ? SL_SPEC_LIGHT_DERIVATIVES : 0);
-	sf->spec = sl_specialize_ex(sf->prog, names, nd, flags, s->diag);
+	sf->spec = shot_meta_specialize(s->meta, sf->meta, sf->prog, s->diag);
 	if (!sf->spec)
 		return fail(s, "cannot specialize surface '%s'", sf->name);
 	struct sl_spec *sp = sf->spec;

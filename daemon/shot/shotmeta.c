@@ -6,6 +6,7 @@
 #include "arena.h"
 #include "exec.h"
 #include "sl.h"
+#include "spec.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -59,6 +60,20 @@ struct sl_program *shot_meta_shader(const cJSON *o, const char *shot, FILE *diag
 		return NULL;
 	}
 	return p;
+}
+
+struct sl_spec *shot_meta_specialize(const cJSON *meta, const cJSON *surface,
+				     const struct sl_program *prog, FILE *diag)
+{
+	const char *names[256];
+	size_t nd = 0;
+	const cJSON *d;
+	cJSON_ArrayForEach(d, cJSON_GetObjectItemCaseSensitive(surface, "dynamic_params"))
+		if (cJSON_IsString(d) && nd < 256)
+			names[nd++] = d->valuestring;
+	const cJSON *ld = cJSON_GetObjectItemCaseSensitive(meta, "light_derivatives");
+	unsigned flags = SL_SPEC_CACHE_PARAMS | (cJSON_IsTrue(ld) ? SL_SPEC_LIGHT_DERIVATIVES : 0);
+	return sl_specialize_ex(prog, names, nd, flags, diag);
 }
 
 bool shot_meta_set_params(struct sl_exec *x, const cJSON *params, const char *shot, FILE *diag)

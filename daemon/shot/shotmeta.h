@@ -16,6 +16,7 @@
 
 struct sl_program;
 struct sl_exec;
+struct sl_spec;
 
 /** The string member @key of @o, or NULL. */
 const char *shot_meta_str(const cJSON *o, const char *key);
@@ -29,6 +30,15 @@ bool shot_meta_matrix(const cJSON *o, const char *key, float m[16]);
  * does not compile, or changed since the bake.
  */
 struct sl_program *shot_meta_shader(const cJSON *o, const char *shot, FILE *diag);
+
+/**
+ * Specialize surface shader @prog of surface entry @surface as the bake did:
+ * its "dynamic_params" editable, uniform parameters cached
+ * (SL_SPEC_CACHE_PARAMS), and Ps's derivatives kept when the shot's lights
+ * take them (@meta "light_derivatives"). NULL with messages on @diag.
+ */
+struct sl_spec *shot_meta_specialize(const cJSON *meta, const cJSON *surface,
+				     const struct sl_program *prog, FILE *diag);
 
 /**
  * Set the parameters of a "params" array ({name, type, value}) on @x. False
