@@ -757,6 +757,8 @@ static bool load_lights(struct gpu_shot *s)
 		if (!name || !hash || !shot_meta_matrix(l, "shader_to_world", s2w))
 			return fail(s, "a light in the metadata is malformed");
 		L->name = rl_xstrdup(name);
+		/* counted from here, so that closing frees what it holds */
+		s->nlights++;
 		sl_m44_mul(L->to_camera, s2w, s->w2c);
 		uint32_t k = 0;
 		while (k < s->nlshaders && strcmp(s->lshaders[k].prog->source_hash, hash))
@@ -771,7 +773,6 @@ static bool load_lights(struct gpu_shot *s)
 			s->nlshaders++;
 		}
 		L->shader = k;
-		s->nlights++;
 		L->init = sl_exec_create(&s->lshaders[k].init, 1);
 		if (!L->init || !shot_meta_set_params(L->init, cJSON_GetObjectItemCaseSensitive(
 							      l, "params"), s->path, s->diag))

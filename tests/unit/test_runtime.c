@@ -27,6 +27,7 @@
 #include "runtime.h"
 #include "test.h"
 
+#include <cjson/cJSON.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -565,6 +566,95 @@ static void test_nonlinear(void)
 	gpu_shot_close(lin);
 }
 
+/* Metadata a shot file should never have, written with valid checksums:
+ * loading refuses it or copes, and never crashes (run under ASan in CI). */
+static void test_bad_metadata(void)
+{
+	static const char *const edits[][2] = {
+		{ "tiling", NULL },
+		{ "tiling.tiles.0.surfaces.0.first_row", "-5" },
+		{ "tiling.tiles.0.surfaces.0.first_row", "1e12" },
+		{ "tiling.tiles.0.surfaces.0.levels", "[5, 3, 1, 0]" },
+		{ "tiling.tiles.0.surfaces.0.levels", "[1e9, 1e9, 1e9, 1e9]" },
+		{ "tiling.tiles.0.surfaces.0.levels", "\"x\"" },
+		{ "tiling.tiles.0.surfaces", "[]" },
+		{ "surfaces.0.first_id", "1e12" },
+		{ "surfaces.0.first_id", "-1" },
+		{ "surfaces.0.table", "\"nope\"" },
+		{ "surfaces.0.source_hash", "\"0\"" },
+		{ "surfaces.0.param_sets", "\"x\"" },
+		{ "surfaces.0.dynamic_params", "[\"nope\"]" },
+		{ "lights.0.shader_to_world", "[1, 2]" },
+		{ "lights.0.source_hash", "\"0\"" },
+		{ "lights.0.params", "[{\"name\": 3}]" },
+		{ "lights.0.name", "7" },
+		{ "lightsets", "[[99], [-1], \"x\"]" },
+		{ "width", "0" },
+		{ "width", "1e9" },
+		{ "world_to_camera", "[0,0,0,0, 0,0,0,0, 0,0,0,0, 0,0,0,0]" },
+		{ "surfaces", "{}" },
+		{ "lights", "3" },
+	};
+	char err[512], out[600];
+	struct shot_file *f = shot_read(shot_path, err, sizeof(err));
+	CHECK(f != NULL);
+	if (!f)
+		return;
+	char *orig = f->metadata;
+	snprintf(out, sizeof(out), "%s/bad.shot.exr", workdir);
+	for (size_t e = 0; e < sizeof(edits) / sizeof(edits[0]); e++) {
+		cJSON *m = cJSON_Parse(orig);
+		/* walk the dotted path; the last step is set or removed */
+		char path[256];
+		snprintf(path, sizeof(path), "%s", edits[e][0]);
+		cJSON *at = m;
+		char *save = NULL, *key = strtok_r(path, ".", &save), *next;
+		while (at && key && (next = strtok_r(NULL, ".", &save))) {
+			at = cJSON_IsArray(at) ? cJSON_GetArrayItem(at, atoi(key))
+					       : cJSON_GetObjectItemCaseSensitive(at, key);
+			key = next;
+		}
+		CHECK(at != NULL);
+		if (!at) {
+			cJSON_Delete(m);
+			continue;
+		}
+		cJSON *v = edits[e][1] ? cJSON_Parse(edits[e][1]) : NULL;
+		bool done = true;
+		if (cJSON_IsArray(at))
+			done = cJSON_ReplaceItemInArray(at, atoi(key), v);
+		else if (v && cJSON_GetObjectItemCaseSensitive(at, key))
+			done = cJSON_ReplaceItemInObjectCaseSensitive(at, key, v);
+		else if (v)
+			done = cJSON_AddItemToObject(at, key, v);
+		else
+			cJSON_DeleteItemFromObjectCaseSensitive(at, key);
+		CHECK(done);
+		if (!done)
+			cJSON_Delete(v);
+		f->metadata = cJSON_PrintUnformatted(m);
+		cJSON_Delete(m);
+		CHECK(shot_write(out, f, NULL, err, sizeof(err)));
+		free(f->metadata);
+		f->metadata = orig;
+		FILE *quiet = fopen("/dev/null", "w");
+		struct gpu_shot_opts o = { .diag = quiet };
+		struct gpu_shot *sh = gpu_shot_open(ctx, out, &o);
+		if (sh) {
+			/* it loaded: it must render finite pixels */
+			float *img = calloc((size_t)gpu_shot_width(sh) * gpu_shot_height(sh) * 4 + 4,
+					    sizeof(float));
+			if (gpu_shot_render(sh, 3, NULL) && gpu_shot_read_rgba(sh, 3, img))
+				CHECK(all_finite(img, (size_t)gpu_shot_width(sh) * gpu_shot_height(sh) * 4));
+			free(img);
+			gpu_shot_close(sh);
+		}
+		if (quiet)
+			fclose(quiet);
+	}
+	shot_free(f);
+}
+
 int main(int argc, char **argv)
 {
 	if (argc < 2) {
@@ -609,6 +699,7 @@ int main(int argc, char **argv)
 			RUN(test_refused);
 			RUN(test_mute_solo_link);
 			RUN(test_graph_work);
+			RUN(test_bad_metadata);
 			if (!getenv("RELIGHT_TEST_QUICK"))
 				RUN(test_stability);
 			gpu_shot_close(shot);
