@@ -217,10 +217,13 @@ static int preview_gpu(const char *shot, const char *output, int level,
 		printf("], \"output\": \"%s\", \"graph\": ", output);
 		graph_print_json(gpu_shot_graph(s), stdout);
 		printf("}\n");
-	} else if (ok && !quiet) {
-		fprintf(stderr, "wrote %s: %ux%u on %s; every light %.1f ms, the edit refined to "
+	} else if (ok && !quiet && nedits) {
+		fprintf(stderr, "wrote %s: %ux%u on %s; every light %.1f ms, the edit%s refined to "
 			"the final level in %.1f ms (level 0 in %.1f ms)\n", output, w, h,
-			gpu_renderer(ctx), full.ms, edit_ms, lv[0].ms);
+			gpu_renderer(ctx), full.ms, nedits > 1 ? "s" : "", edit_ms, lv[0].ms);
+	} else if (ok && !quiet) {
+		fprintf(stderr, "wrote %s: %ux%u on %s; every light, nothing to the final level, "
+			"in %.1f ms\n", output, w, h, gpu_renderer(ctx), full.ms);
 	}
 	gpu_shot_close(s);
 	gpu_destroy(ctx);
