@@ -88,6 +88,9 @@ struct light {
 	bool pinned;               /* unfrozen by gpu_shot_freeze: stays so */
 	bool removed;              /* gpu_shot_remove_light: gone */
 	bool shadows_off;
+	struct gpu_buffer *recv;   /* per object: 1 receives this light's shadows, 0 not */
+	float *recv_cpu;
+	uint32_t not_receiving;    /* objects that do not */
 	float shadow_density, shadow_color[3];
 	struct gpu_buffer *link;   /* per object: 1 reached, 0 not */
 	float *link_cpu;
@@ -344,7 +347,8 @@ static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *la
 /* The hand-written kernels                                                  */
 
 /*
- * Accumulate: dst[id] (+)= weight * link(object) * (out[row] - base[id]) for
+ * Accumulate: dst[id] (+)= (weight + weight_recv * receives(object)) *
+ * link(object) * (out[row] - base[id]) for
  * rows [u_first, u_first + u_count) of a surface; or, for the base itself,
  * dst[id] = out[row]. DST is float (the colours, the base) or double (the
  * light cache: a sum of floats whose magnitudes lie within 2^29 of each
@@ -359,12 +363,14 @@ static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *la
 	"layout(binding = 2) uniform samplerBuffer u_link;\n" \
 	"layout(binding = 3) uniform samplerBuffer u_base;\n" \
 	"layout(std430, binding = 4) buffer Dst { " DST " dst[]; };\n" \
+	"layout(binding = 5) uniform samplerBuffer u_recv;\n" \
 	"uniform int u_count;\n" \
 	"uniform int u_first;\n" \
 	"uniform int u_ostride;\n" \
 	"uniform int u_id0;\n" \
 	"uniform int u_mode;\n" \
 	"uniform vec3 u_weight;\n" \
+	"uniform vec3 u_weight_recv;\n" \
 	"void main() {\n" \
 	"	uint i = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 64u;\n" \
 	"	if (i >= uint(u_count)) return;\n" \
@@ -377,11 +383,13 @@ static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *la
 	"		}\n" \
 	"		return;\n" \
 	"	}\n" \
-	"	float link = texelFetch(u_link, int(texelFetch(u_obj, row).x)).x;\n" \
+	"	int obj = int(texelFetch(u_obj, row).x);\n" \
+	"	float link = texelFetch(u_link, obj).x;\n" \
 	"	if (link == 0.0) return;\n" \
+	"	vec3 wt = u_weight + u_weight_recv * texelFetch(u_recv, obj).x;\n" \
 	"	for (int c = 0; c < 3; c++) {\n" \
 	"		precise float v = texelFetch(u_out, row * u_ostride + c).x - texelFetch(u_base, id * 3 + c).x;\n" \
-	"		v = isnan(v) || isinf(v) ? 0.0 : v * (u_weight[c] * link);\n" \
+	"		v = isnan(v) || isinf(v) ? 0.0 : v * (wt[c] * link);\n" \
 	"		precise " DST " r = dst[id * 3 + c] + " DST "(v);\n" \
 	"		dst[id * 3 + c] = isnan(r) || isinf(r) ? " DST "(0.0) : r;\n" \
 	"	}\n" \
@@ -481,7 +489,8 @@ static bool bind_shadows(struct gpu_shot *s, const struct kernel *k, const struc
  * with no light, dst = the result; else dst += sign * link * (result - base).
  */
 static bool shade_pass(struct gpu_shot *s, struct light *L, const struct lstate *st, int band,
-		       bool maps, const float weight[3], struct gpu_buffer *dst)
+		       bool maps, const float weight[3], const float weight_recv[3],
+		       struct gpu_buffer *dst)
 {
 	for (uint32_t si = 0; si < s->nsurfaces; si++) {
 		struct surface *sf = &s->surfaces[si];
@@ -516,14 +525,16 @@ static bool shade_pass(struct gpu_shot *s, struct light *L, const struct lstate 
 			gpu_uniform_int(a, "u_id0", (int)sf->id0);
 			gpu_uniform_int(a, "u_mode", L ? 1 : 0);
 			gpu_uniform_float(a, "u_weight", weight, 3);
-			struct gpu_binding ab[5] = {
+			gpu_uniform_float(a, "u_weight_recv", weight_recv, 3);
+			struct gpu_binding ab[6] = {
 				{ 0, false, s->scratch },
 				{ 1, false, sf->object },
 				{ 2, false, L ? L->link : s->zero },
 				{ 3, false, s->base },
 				{ 4, true, dst },
+				{ 5, false, L && L->recv ? L->recv : s->zero },
 			};
-			if (!gpu_dispatch(s->ctx, a, ab, 5, ru->count))
+			if (!gpu_dispatch(s->ctx, a, ab, 6, ru->count))
 				return fail(s, "accumulating light '%s' failed", L ? L->name : "(none)");
 			count_dispatch(s, 0);
 		}
@@ -542,19 +553,22 @@ static bool shade_pass(struct gpu_shot *s, struct light *L, const struct lstate 
 static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, int band,
 		  float sign, struct gpu_buffer *dst)
 {
-	float one[3] = { sign, sign, sign };
+	const float one[3] = { sign, sign, sign }, none[3] = { 0, 0, 0 };
 	if (!L || !L->nmaps)
-		return shade_pass(s, L, st, band, true, one, dst);
-	float wo[3], wi[3];
-	bool any_o = false, any_i = false;
+		return shade_pass(s, L, st, band, true, one, none, dst);
+	/* an object that does not receive the light's shadows takes the
+	 * unshadowed pass alone: weights 1 - w r and w r, r its receiving */
+	float w[3], minus_w[3];
+	bool any_w = false, all_w = true;
 	for (int c = 0; c < 3; c++) {
-		wi[c] = sign * st->shadow[c];
-		wo[c] = sign * (1.0f - st->shadow[c]);
-		any_o = any_o || wo[c] != 0.0f;
-		any_i = any_i || wi[c] != 0.0f;
+		w[c] = sign * st->shadow[c];
+		minus_w[c] = -w[c];
+		any_w = any_w || w[c] != 0.0f;
+		all_w = all_w && w[c] == sign;
 	}
-	return (!any_o || shade_pass(s, L, st, band, false, wo, dst)) &&
-	       (!any_i || shade_pass(s, L, st, band, true, wi, dst));
+	bool unshadowed = !all_w || L->not_receiving;
+	return (!unshadowed || shade_pass(s, L, st, band, false, one, minus_w, dst)) &&
+	       (!any_w || shade_pass(s, L, st, band, true, none, w, dst));
 }
 
 /* Run @p over the sample ids of band @band (u_first: each run's first id). */
@@ -1168,11 +1182,13 @@ static bool warm_up(struct gpu_shot *s)
 		gpu_uniform_int(acc[i], "u_mode", 1);
 		static const float w[3] = { 1, 1, 1 };
 		gpu_uniform_float(acc[i], "u_weight", w, 3);
-		struct gpu_binding ab[5] = {
+		static const float z[3] = { 0, 0, 0 };
+		gpu_uniform_float(acc[i], "u_weight_recv", z, 3);
+		struct gpu_binding ab[6] = {
 			{ 0, false, s->zero }, { 1, false, s->zero }, { 2, false, s->zero },
-			{ 3, false, s->zero }, { 4, true, dst[i] },
+			{ 3, false, s->zero }, { 4, true, dst[i] }, { 5, false, s->zero },
 		};
-		if (!gpu_dispatch(s->ctx, acc[i], ab, 5, 1))
+		if (!gpu_dispatch(s->ctx, acc[i], ab, 6, 1))
 			return fail(s, "running the runtime's programs failed");
 	}
 	gpu_uniform_int(s->combine, "u_first", 0);
@@ -1193,7 +1209,9 @@ static bool warm_up(struct gpu_shot *s)
 
 static void check_linear(struct gpu_shot *s, struct surface *sf);
 
-static void build_graph(struct gpu_shot *s)
+static bool make_receivers(struct gpu_shot *s, struct light *L);
+
+static bool build_graph(struct gpu_shot *s)
 {
 	for (uint32_t i = 0; i < s->nlights; i++) {
 		struct light *L = &s->lights[i];
@@ -1204,6 +1222,8 @@ static void build_graph(struct gpu_shot *s)
 			L->maps = rl_xcalloc(k->layout.nshadows, sizeof(*L->maps));
 			L->map_names = rl_xcalloc(k->layout.nshadows, sizeof(*L->map_names));
 			L->nmaps = k->layout.nshadows;
+			if (!make_receivers(s, L))
+				return false;
 			L->shadow_node = graph_add(s->graph, name, GRAPH_DEPTH_MAP, run_shadow, s);
 			graph_connect(s->graph, L->node, L->shadow_node);
 		}
@@ -1237,6 +1257,7 @@ static void build_graph(struct gpu_shot *s)
 		for (int b = 0; b <= L; b++)
 			graph_connect(s->graph, s->shade[b], s->resolve[L]);
 	}
+	return true;
 }
 
 struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
@@ -1363,8 +1384,7 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	free(remap);
 	for (int b = 0; b < NBANDS; b++)
 		s->cached[b] = rl_xcalloc(s->nlights + 1, sizeof(struct lstate));
-	if (ok)
-		build_graph(s);
+	ok = ok && build_graph(s);
 	ok = ok && warm_up(s);
 	for (uint32_t i = 0; ok && i < s->nsurfaces; i++)
 		check_linear(s, &s->surfaces[i]);
@@ -1423,6 +1443,8 @@ void gpu_shot_close(struct gpu_shot *s)
 		lstate_free(&L->cur);
 		gpu_buffer_destroy(L->link);
 		free(L->link_cpu);
+		gpu_buffer_destroy(L->recv);
+		free(L->recv_cpu);
 	}
 	free(s->lights);
 	for (int b = 0; b < NBANDS; b++) {
@@ -1928,6 +1950,16 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 /* ------------------------------------------------------------------------ */
 /* Shadows, surfaces, adding and removing lights                             */
 
+/* Every object receives @L's shadows at first (for a light with maps). */
+static bool make_receivers(struct gpu_shot *s, struct light *L)
+{
+	L->recv_cpu = rl_xmalloc((s->nobjects + 1) * sizeof(float));
+	for (uint32_t o = 0; o <= s->nobjects; o++)
+		L->recv_cpu[o] = 1.0f;
+	L->recv = buffer(s, (s->nobjects + 1) * sizeof(float), L->recv_cpu);
+	return L->recv != NULL;
+}
+
 static struct light *shadowed(struct gpu_shot *s, const char *light, char *err, size_t errlen)
 {
 	struct light *L = find(s, light, err, errlen);
@@ -2171,6 +2203,8 @@ int gpu_shot_add_light(struct gpu_shot *s, const char *name, const char *shader,
 		L->maps = rl_xcalloc(kk->layout.nshadows, sizeof(*L->maps));
 		L->map_names = rl_xcalloc(kk->layout.nshadows, sizeof(*L->map_names));
 		L->nmaps = kk->layout.nshadows;
+		if (!make_receivers(s, L))
+			errorf(err, errlen, "no GPU memory for light '%s''s shadow receivers", name);
 		L->shadow_node = graph_add(s->graph, nm, GRAPH_DEPTH_MAP, run_shadow, s);
 		graph_connect(s->graph, L->node, L->shadow_node);
 	}
@@ -2194,6 +2228,32 @@ bool gpu_shot_remove_light(struct gpu_shot *s, const char *light, char *err, siz
 	if (s->solo == (int)(L - s->lights))
 		s->solo = -1;
 	L->removed = true;
+	touched(s, L);
+	return true;
+}
+
+bool gpu_shot_receive_shadows(struct gpu_shot *s, const char *light, uint32_t object,
+			      bool receives, char *err, size_t errlen)
+{
+	struct light *L = shadowed(s, light, err, errlen);
+	if (!L)
+		return false;
+	if (object >= s->nobjects) {
+		errorf(err, errlen, "no object %u in the shot (its objects are 0 to %u)", object,
+		       s->nobjects - 1);
+		return false;
+	}
+	float v = receives ? 1.0f : 0.0f;
+	if (L->recv_cpu[object] == v)
+		return true;
+	if (!gpu_buffer_write(L->recv, object * sizeof(float), sizeof(float), &v)) {
+		errorf(err, errlen, "updating the shadow receivers of light '%s' failed", L->name);
+		return false;
+	}
+	L->recv_cpu[object] = v;
+	L->not_receiving += receives ? (uint32_t)-1 : 1u;
+	/* as for links: what the cache holds of the light was made with the old ones */
+	L->link_version = ++s->link_version;
 	touched(s, L);
 	return true;
 }

@@ -138,6 +138,14 @@ bool gpu_shot_shadow_look(struct gpu_shot *s, const char *light, float density,
 			  const float color[3], char *err, size_t errlen);
 
 /**
+ * Whether object @object receives the shadows of light @light (all do at
+ * first): an object that does not is lit as with the light's shadows off.
+ * Refused for a light whose shader reads no shadow map.
+ */
+bool gpu_shot_receive_shadows(struct gpu_shot *s, const char *light, uint32_t object,
+			      bool receives, char *err, size_t errlen);
+
+/**
  * Set surface parameter @param, baked as editable (`relight bake
  * --dynamic-surface`), to @values on every object whose surface shader is
  * @shader (checked as light values are). The light cache is summed again.

@@ -447,6 +447,25 @@ static void test_shadow_look(void)
 	g = image_of(on, true, sh);
 	CHECK(max_rel(g, cpu_on, n, NULL) <= REL_TOL);
 	free(g);
+	/* no object receiving the key light's shadows is its shadows off */
+	uint32_t objects = 0;
+	while (objects < 1000 && gpu_shot_receive_shadows(sh, "2", objects, false, err, sizeof(err)))
+		objects++;
+	CHECK(objects >= 2 && strstr(err, "no object") != NULL);
+	g = image_of(on, true, sh);
+	CHECK(max_rel(g, cpu_off, n, NULL) <= REL_TOL);
+	free(g);
+	/* one object receiving again: some pixels shadowed, none darker than with shadows */
+	CHECK(gpu_shot_receive_shadows(sh, "2", 0, true, err, sizeof(err)));
+	g = image_of(on, true, sh);
+	CHECK(max_rel(g, cpu_off, n, NULL) > REL_TOL || max_rel(g, cpu_on, n, NULL) <= REL_TOL);
+	free(g);
+	for (uint32_t o = 0; o < objects; o++)
+		CHECK(gpu_shot_receive_shadows(sh, "2", o, true, err, sizeof(err)));
+	CHECK(!gpu_shot_receive_shadows(sh, "1", 0, false, err, sizeof(err)));
+	g = image_of(on, true, sh);
+	CHECK(max_rel(g, cpu_on, n, NULL) <= REL_TOL);
+	free(g);
 	free(want);
 	free(cpu_on);
 	free(cpu_off);
