@@ -16,6 +16,7 @@ struct gpu_shadow_map {
 	uint32_t width, height;
 	float world_to_camera[16], world_to_ndc[16];
 	float bias;
+	bool borrowed;       /* depth belongs to the caller (gpu_shadow_map_with_depth) */
 };
 
 struct gpu_shadow_map *gpu_shadow_map_load(struct gpu_ctx *ctx, struct reyes_texsys *ts,
@@ -72,8 +73,30 @@ void gpu_shadow_map_destroy(struct gpu_shadow_map *m)
 {
 	if (!m)
 		return;
-	gpu_buffer_destroy(m->depth);
+	if (!m->borrowed)
+		gpu_buffer_destroy(m->depth);
 	free(m);
+}
+
+struct gpu_shadow_map *gpu_shadow_map_with_depth(const struct gpu_shadow_map *like,
+						 struct gpu_buffer *depth)
+{
+	if (!like || !depth)
+		return NULL;
+	struct gpu_shadow_map *m = malloc(sizeof(*m));
+	if (!m)
+		return NULL;
+	*m = *like;
+	m->depth = depth;
+	m->borrowed = true;
+	return m;
+}
+
+void gpu_shadow_map_camera(const struct gpu_shadow_map *m, float world_to_camera[16],
+			   float world_to_ndc[16])
+{
+	memcpy(world_to_camera, m->world_to_camera, 16 * sizeof(float));
+	memcpy(world_to_ndc, m->world_to_ndc, 16 * sizeof(float));
 }
 
 size_t gpu_shadow_map_bytes(const struct gpu_shadow_map *m)

@@ -32,6 +32,19 @@ size_t gpu_shadow_map_bytes(const struct gpu_shadow_map *m);
 void gpu_shadow_map_size(const struct gpu_shadow_map *m, uint32_t *width, uint32_t *height);
 
 /**
+ * A map with the camera, size and bias of @like and the depths of @depth (an
+ * SSBO of width * height floats of @like's context, as
+ * gpu_shadow_geometry_render writes them). The map does not own @depth,
+ * which must outlive it. NULL when out of memory.
+ */
+struct gpu_shadow_map *gpu_shadow_map_with_depth(const struct gpu_shadow_map *like,
+						 struct gpu_buffer *depth);
+
+/** The camera of @m: world -> camera and world -> NDC (row vectors). */
+void gpu_shadow_map_camera(const struct gpu_shadow_map *m, float world_to_camera[16],
+			   float world_to_ndc[16]);
+
+/**
  * Set the uniforms of shadow() site @site of @p (sl/glsl.h: u_shadow<site>_*,
  * u_to_world) for map @m and fill @b with the binding to pass to
  * gpu_dispatch(): the map's depths at texture unit SL_GLSL_SHADOW_UNIT0 +
