@@ -32,6 +32,7 @@
 #include "mathlib.h"
 #include "resolve.h"
 #include "shadowmap.h"
+#include "shadowrender.h"
 #include "shotfile.h"
 #include "shotmeta.h"
 #include "spec.h"
@@ -91,6 +92,13 @@ struct light {
 	struct gpu_buffer *recv;   /* per object: 1 receives this light's shadows, 0 not */
 	float *recv_cpu;
 	uint32_t not_receiving;    /* objects that do not */
+	float *cast_cpu;           /* per object: 1 casts this light's shadows, 0 not */
+	uint32_t not_casting;      /* objects that do not */
+	uint32_t cast_version, rendered_version;
+	/* per shadow site, while some object does not cast: the map rendered
+	 * from the shadow geometry without them, and its depths */
+	struct gpu_shadow_map **rmaps;
+	struct gpu_buffer **rdepth;
 	float shadow_density, shadow_color[3];
 	struct gpu_buffer *link;   /* per object: 1 reached, 0 not */
 	float *link_cpu;
@@ -167,6 +175,7 @@ struct gpu_shot {
 	uint32_t nsurfaces;
 
 	struct gpu_ifb *ifb;
+	struct gpu_shadow_geometry *shadow_geo;  /* NULL: the shot has none */
 	uint64_t level_entries[NBANDS];
 	struct gpu_buffer *base, *cache, *colors, *scratch, *zero;
 	struct gpu_buffer *rgba[NBANDS], *px8;
@@ -467,6 +476,8 @@ static bool bind_maps(struct gpu_shot *s, const struct kernel *k, const struct l
 {
 	for (uint32_t i = 0; i < k->layout.nshadows; i++) {
 		const struct gpu_shadow_map *m = maps && L && L->maps ? L->maps[i] : NULL;
+		if (m && L->not_casting && L->rmaps && L->rmaps[i])
+			m = L->rmaps[i];
 		b[*nb] = (struct gpu_binding){ 0, false, s->zero, false };
 		if (!gpu_shadow_map_bind(s->ctx, k->prog, i, m, s->c2w, &b[*nb]))
 			return fail(s, "cannot bind the shadow map of a kernel");
@@ -734,6 +745,33 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 			if (!L->maps[i])
 				fprintf(s->diag, "relight: warning: light '%s': %s\n", L->name, err);
 		}
+		L->rendered_version = 0;
+	}
+	/* objects left out of casting: render the maps again from the geometry,
+	 * with each map's camera, size and bias */
+	if (L->not_casting && L->rendered_version != L->cast_version) {
+		for (uint32_t i = 0; i < L->nmaps; i++) {
+			gpu_shadow_map_destroy(L->rmaps[i]);
+			L->rmaps[i] = NULL;
+			if (!L->maps[i] || !s->shadow_geo)
+				continue;
+			uint32_t w, h;
+			float w2c[16], w2ndc[16];
+			gpu_shadow_map_size(L->maps[i], &w, &h);
+			gpu_shadow_map_camera(L->maps[i], w2c, w2ndc);
+			if (!L->rdepth[i])
+				L->rdepth[i] = gpu_buffer_create(s->ctx, (size_t)w * h * sizeof(float), NULL);
+			if (!L->rdepth[i] ||
+			    !gpu_shadow_geometry_render(s->ctx, s->shadow_geo, w2c, w2ndc, w, h,
+							GPU_DEPTH_MIDPOINT, L->cast_cpu, s->nobjects,
+							L->rdepth[i]))
+				return fail(s, "rendering the shadow map of light '%s' failed", L->name);
+			L->rmaps[i] = gpu_shadow_map_with_depth(L->maps[i], L->rdepth[i]);
+			if (!L->rmaps[i])
+				return fail(s, "out of memory");
+		}
+		L->rendered_version = L->cast_version;
+		*changed = true;
 	}
 	return true;
 }
@@ -1095,6 +1133,62 @@ static uint32_t json_uint(const cJSON *o, const char *key)
 		       ? (uint32_t)v->valuedouble : 0;
 }
 
+/*
+ * The shadow geometry (shadow.points, shadow.quads), for maps rendered when
+ * casting is edited per object. Without it (or without the GPU's support)
+ * casting cannot be edited; nothing else changes.
+ */
+static void load_shadow_geometry(struct gpu_shot *s, const struct shot_file *f)
+{
+	const struct shot_table *pt = shot_find_table(f, "shadow.points");
+	const struct shot_table *qt = shot_find_table(f, "shadow.quads");
+	if (!pt || !qt)
+		return;
+	const float *xyz[3] = { 0 };
+	const uint32_t *v[4] = { 0 }, *obj = NULL;
+	for (uint32_t c = 0; c < pt->nchannels; c++)
+		for (int a = 0; a < 3; a++)
+			if (!strcmp(pt->channels[c].name, (const char *[]){ "X", "Y", "Z" }[a]) &&
+			    pt->channels[c].type != SHOT_UINT)
+				xyz[a] = pt->channels[c].data;
+	for (uint32_t c = 0; c < qt->nchannels; c++) {
+		const struct shot_channel *ch = &qt->channels[c];
+		if (ch->type != SHOT_UINT)
+			continue;
+		if (!strcmp(ch->name, "object"))
+			obj = ch->data;
+		for (int a = 0; a < 4; a++)
+			if (!strcmp(ch->name, (const char *[]){ "v0", "v1", "v2", "v3" }[a]))
+				v[a] = ch->data;
+	}
+	if (!xyz[0] || !xyz[1] || !xyz[2] || !v[0] || !v[1] || !v[2] || !v[3] || !obj) {
+		fprintf(s->diag, "relight: warning: %s: the shadow geometry is malformed; casting "
+			"cannot be edited\n", s->path);
+		return;
+	}
+	float *P = rl_xmalloc((pt->nrows * 3 + 1) * sizeof(float));
+	uint32_t *q = rl_xmalloc((qt->nrows * 4 + 1) * sizeof(uint32_t));
+	for (uint64_t i = 0; i < pt->nrows; i++)
+		for (int a = 0; a < 3; a++)
+			P[i * 3 + (uint64_t)a] = xyz[a][i];
+	for (uint64_t i = 0; i < qt->nrows; i++)
+		for (int a = 0; a < 4; a++)
+			q[i * 4 + (uint64_t)a] = v[a][i];
+	char err[512];
+	size_t need = (pt->nrows * 3 + qt->nrows * 5) * sizeof(float);
+	if (s->bytes + need <= s->budget) {
+		s->shadow_geo = gpu_shadow_geometry_create(s->ctx, P, pt->nrows, q, obj, qt->nrows, err,
+							   sizeof(err));
+		if (!s->shadow_geo)
+			fprintf(s->diag, "relight: warning: %s: %s; casting cannot be edited\n",
+				s->path, err);
+		else
+			s->bytes += gpu_shadow_geometry_bytes(s->shadow_geo);
+	}
+	free(P);
+	free(q);
+}
+
 static bool load_framebuffer(struct gpu_shot *s, const struct shot_file *f, const uint32_t *remap)
 {
 	const struct shot_deep *ifb = shot_find_deep(f, "ifb");
@@ -1222,6 +1316,8 @@ static bool build_graph(struct gpu_shot *s)
 			L->maps = rl_xcalloc(k->layout.nshadows, sizeof(*L->maps));
 			L->map_names = rl_xcalloc(k->layout.nshadows, sizeof(*L->map_names));
 			L->nmaps = k->layout.nshadows;
+			L->rmaps = rl_xcalloc(L->nmaps, sizeof(*L->rmaps));
+			L->rdepth = rl_xcalloc(L->nmaps, sizeof(*L->rdepth));
 			if (!make_receivers(s, L))
 				return false;
 			L->shadow_node = graph_add(s->graph, name, GRAPH_DEPTH_MAP, run_shadow, s);
@@ -1381,6 +1477,8 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	}
 	free(lightset_of);
 	ok = ok && load_framebuffer(s, f, remap);
+	if (ok)
+		load_shadow_geometry(s, f);
 	free(remap);
 	for (int b = 0; b < NBANDS; b++)
 		s->cached[b] = rl_xcalloc(s->nlights + 1, sizeof(struct lstate));
@@ -1434,9 +1532,14 @@ void gpu_shot_close(struct gpu_shot *s)
 		struct light *L = &s->lights[i];
 		for (uint32_t m = 0; m < L->nmaps; m++) {
 			gpu_shadow_map_destroy(L->maps[m]);
+			gpu_shadow_map_destroy(L->rmaps[m]);
+			gpu_buffer_destroy(L->rdepth[m]);
 			free(L->map_names[m]);
 		}
 		free(L->maps);
+		free(L->rmaps);
+		free(L->rdepth);
+		free(L->cast_cpu);
 		free(L->map_names);
 		free(L->name);
 		sl_exec_destroy(L->init);
@@ -1458,6 +1561,7 @@ void gpu_shot_close(struct gpu_shot *s)
 	free(s->shader_path);
 	free(s->lshaders);
 	gpu_ifb_destroy(s->ifb);
+	gpu_shadow_geometry_destroy(s->shadow_geo);
 	gpu_buffer_destroy(s->base);
 	gpu_buffer_destroy(s->cache);
 	gpu_buffer_destroy(s->colors);
@@ -1957,6 +2061,9 @@ static bool make_receivers(struct gpu_shot *s, struct light *L)
 	for (uint32_t o = 0; o <= s->nobjects; o++)
 		L->recv_cpu[o] = 1.0f;
 	L->recv = buffer(s, (s->nobjects + 1) * sizeof(float), L->recv_cpu);
+	L->cast_cpu = rl_xmalloc((s->nobjects + 1) * sizeof(float));
+	for (uint32_t o = 0; o <= s->nobjects; o++)
+		L->cast_cpu[o] = 1.0f;
 	return L->recv != NULL;
 }
 
@@ -2203,6 +2310,8 @@ int gpu_shot_add_light(struct gpu_shot *s, const char *name, const char *shader,
 		L->maps = rl_xcalloc(kk->layout.nshadows, sizeof(*L->maps));
 		L->map_names = rl_xcalloc(kk->layout.nshadows, sizeof(*L->map_names));
 		L->nmaps = kk->layout.nshadows;
+		L->rmaps = rl_xcalloc(L->nmaps, sizeof(*L->rmaps));
+		L->rdepth = rl_xcalloc(L->nmaps, sizeof(*L->rdepth));
 		if (!make_receivers(s, L))
 			errorf(err, errlen, "no GPU memory for light '%s''s shadow receivers", name);
 		L->shadow_node = graph_add(s->graph, nm, GRAPH_DEPTH_MAP, run_shadow, s);
@@ -2254,6 +2363,34 @@ bool gpu_shot_receive_shadows(struct gpu_shot *s, const char *light, uint32_t ob
 	L->not_receiving += receives ? (uint32_t)-1 : 1u;
 	/* as for links: what the cache holds of the light was made with the old ones */
 	L->link_version = ++s->link_version;
+	touched(s, L);
+	return true;
+}
+
+bool gpu_shot_cast_shadows(struct gpu_shot *s, const char *light, uint32_t object, bool casts,
+			   char *err, size_t errlen)
+{
+	struct light *L = shadowed(s, light, err, errlen);
+	if (!L)
+		return false;
+	if (object >= s->nobjects) {
+		errorf(err, errlen, "no object %u in the shot (its objects are 0 to %u)", object,
+		       s->nobjects - 1);
+		return false;
+	}
+	if (!s->shadow_geo) {
+		errorf(err, errlen, "the shot holds no shadow geometry the GPU can render: casting "
+		       "cannot be edited");
+		return false;
+	}
+	float v = casts ? 1.0f : 0.0f;
+	if (L->cast_cpu[object] == v)
+		return true;
+	L->cast_cpu[object] = v;
+	L->not_casting += casts ? (uint32_t)-1 : 1u;
+	L->cast_version++;
+	L->link_version = ++s->link_version;
+	graph_touch(L->shadow_node);
 	touched(s, L);
 	return true;
 }

@@ -146,6 +146,16 @@ bool gpu_shot_receive_shadows(struct gpu_shot *s, const char *light, uint32_t ob
 			      bool receives, char *err, size_t errlen);
 
 /**
+ * Whether object @object casts the shadows of light @light (all do at
+ * first). While some object does not, the light's maps are rendered on the
+ * GPU from the shot's shadow geometry (gpu/shadowrender.h) with each map's
+ * camera, size and bias, without those objects. Refused for a light whose
+ * shader reads no shadow map, or a shot without shadow geometry.
+ */
+bool gpu_shot_cast_shadows(struct gpu_shot *s, const char *light, uint32_t object, bool casts,
+			   char *err, size_t errlen);
+
+/**
  * Set surface parameter @param, baked as editable (`relight bake
  * --dynamic-surface`), to @values on every object whose surface shader is
  * @shader (checked as light values are). The light cache is summed again.
