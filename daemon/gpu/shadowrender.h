@@ -19,15 +19,26 @@ struct gpu_shadow_geometry;
 /**
  * Upload shadow geometry (bake/shadowgeo.h's layout: the shot's
  * "shadow.points" and "shadow.quads" tables): @P, 3 floats per point (world
- * space); @quads, 4 point indices per micropolygon; @object, its object id.
- * Micropolygons with an index out of range or a non-finite corner are
- * dropped. NULL with the reason in @err.
+ * space); @quads, 4 point indices per micropolygon; @object, its object id
+ * (any 32-bit value). Micropolygons with an index out of range or a
+ * non-finite corner are dropped. The arrays are copied (the caller keeps
+ * them); nothing at all (0 micropolygons) is valid and renders empty maps.
+ * NULL with the reason in @err (may be NULL): no context, a NULL array
+ * with a non-zero count, out of memory.
  */
 struct gpu_shadow_geometry *gpu_shadow_geometry_create(struct gpu_ctx *ctx, const float *P,
 						       uint64_t npoints, const uint32_t *quads,
 						       const uint32_t *object, uint64_t nquads,
 						       char *err, size_t errlen);
+
+/** Free @g's GPU buffers (@ctx current); NULL is fine. */
 void gpu_shadow_geometry_destroy(struct gpu_shadow_geometry *g);
+
+/**
+ * GPU memory @g holds: 12 bytes per point, 20 per kept micropolygon, 4 per
+ * distinct object id, and, once a midpoint map was rendered, 8 per pixel of
+ * the largest such map (scratch kept for the next render). 0 for NULL.
+ */
 size_t gpu_shadow_geometry_bytes(const struct gpu_shadow_geometry *g);
 
 /** How a pixel's depth comes from the surfaces at its centre (the hider's depthfilter). */
@@ -44,8 +55,21 @@ enum gpu_depth_filter {
  * z of the surfaces covering its centre, combined by @filter; 1e30 where
  * nothing is (an empty pixel casts no shadow). Objects whose @casts entry is
  * 0 are left out (@casts NULL: every object casts; objects at or past
- * @ncasts cast). @depth: an SSBO of @width * @height floats, written
- * row-major from the top row. False on a GPU error or bad arguments.
+ * @ncasts cast). @depth: an SSBO of at least @width * @height floats,
+ * written row-major from the top row. False on a GPU error or bad
+ * arguments (a matrix not finite, an empty or too small map, @depth
+ * smaller than the map, @g of another context).
+ *
+ * Coverage follows the renderer's hider: each micropolygon is cut into
+ * (v0, v1, v2) and (v0, v2, v3), and a centre on an edge belongs to the
+ * side it would fall in if moved right, then down, so one surface counts
+ * once at every centre. Depth is interpolated with perspective-correct
+ * weights (the exact intersection with the triangle's plane). Left out:
+ * micropolygons with a corner at or behind the eye (h.w <= 0) or projecting
+ * to a non-finite point, hits at z <= 0 or at or past 1e30, and any
+ * micropolygon whose bounding box holds more than 65536 pixel centres of
+ * the map (the cap on one micropolygon's work; such a micropolygon is far
+ * coarser than a shadow map is diced for).
  */
 bool gpu_shadow_geometry_render(struct gpu_ctx *ctx, struct gpu_shadow_geometry *g,
 				const float world_to_camera[16], const float world_to_ndc[16],

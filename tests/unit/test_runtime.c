@@ -358,6 +358,22 @@ static void test_graph_work(void)
 
 static char workdir[64], relight_cmd[1024];
 
+/* @in with every @from replaced by @to, into @out (@len bytes). */
+static void replace_all(const char *in, const char *from, const char *to, char *out, size_t len)
+{
+	size_t at = 0, nf = strlen(from), nt = strlen(to);
+	while (*in && at + 1 < len) {
+		if (!strncmp(in, from, nf) && at + nt + 1 < len) {
+			memcpy(out + at, to, nt);
+			at += nt;
+			in += nf;
+		} else {
+			out[at++] = *in++;
+		}
+	}
+	out[at] = '\0';
+}
+
 /* Bake @rib_text (with @from replaced by @to) into WORKDIR/@name.shot.exr with @flags. */
 static bool bake(const char *name, const char *rib_text, const char *from, const char *to,
 		 const char *flags, char *shot, size_t len)
@@ -463,6 +479,43 @@ static void test_shadow_look(void)
 	for (uint32_t o = 0; o < objects; o++)
 		CHECK(gpu_shot_receive_shadows(sh, "2", o, true, err, sizeof(err)));
 	CHECK(!gpu_shot_receive_shadows(sh, "1", 0, false, err, sizeof(err)));
+	g = image_of(on, true, sh);
+	CHECK(max_rel(g, cpu_on, n, NULL) <= REL_TOL);
+	free(g);
+
+	/* casting: with no object casting, the map is empty: shadows off */
+	uint32_t casting = 0;
+	while (casting < objects && gpu_shot_cast_shadows(sh, "2", casting, false, err, sizeof(err)))
+		casting++;
+	if (casting < objects)
+		fprintf(stderr, "cast: %s\n", err);
+	CHECK(casting == objects);
+	g = image_of(on, true, sh);
+	CHECK(max_rel(g, cpu_off, n, NULL) <= REL_TOL);
+	free(g);
+	/* the ground alone casting (the sphere is object 1): the shot whose
+	 * shadow pass leaves the sphere out, but for the map's rasterization */
+	char nosphere[512], text[4096], text2[4096];
+	const char *sphere = "  AttributeBegin Translate 0 0.5 1 Sphere 0.5 -0.5 0.5 360 AttributeEnd\n";
+	const char *first = strstr(shadow_scene, sphere);
+	snprintf(text, sizeof(text), "%.*s%s", (int)(first - shadow_scene), shadow_scene,
+		 first + strlen(sphere));
+	replace_all(text, "key.", "ns.", text2, sizeof(text2));
+	CHECK(bake("nosphere", text2, "SHADOWNAME", "\"shadowname\" \"ns.shd\" \"samples\" 16",
+		   "", nosphere, sizeof(nosphere)));
+	CHECK(gpu_shot_cast_shadows(sh, "2", 0, true, err, sizeof(err)));
+	g = image_of(on, true, sh);
+	float *cpu_ns = image_of(nosphere, false, NULL);
+	double mean = 0.0;
+	for (size_t i = 0; i < n; i++)
+		mean += fabs((double)g[i] - cpu_ns[i]) / (double)n;
+	printf("casting edited: GPU-rendered map against the renderer's map of the same casters: "
+	       "mean difference %.3g, largest relative %.3g\n", mean, max_rel(g, cpu_ns, n, NULL));
+	CHECK(mean <= 1e-3);
+	free(g);
+	free(cpu_ns);
+	for (uint32_t o = 0; o < objects; o++)
+		CHECK(gpu_shot_cast_shadows(sh, "2", o, true, err, sizeof(err)));
 	g = image_of(on, true, sh);
 	CHECK(max_rel(g, cpu_on, n, NULL) <= REL_TOL);
 	free(g);
