@@ -95,6 +95,8 @@ struct light {
 	float *cast_cpu;           /* per object: 1 casts this light's shadows, 0 not */
 	uint32_t not_casting;      /* objects that do not */
 	uint32_t cast_version, rendered_version;
+	bool follow;               /* the maps' cameras follow the light's from and to */
+	float follow_key[6];       /* the from and to the maps were last rendered for */
 	/* per shadow site, while some object does not cast: the map rendered
 	 * from the shadow geometry without them, and its depths */
 	struct gpu_shadow_map **rmaps;
@@ -476,7 +478,7 @@ static bool bind_maps(struct gpu_shot *s, const struct kernel *k, const struct l
 {
 	for (uint32_t i = 0; i < k->layout.nshadows; i++) {
 		const struct gpu_shadow_map *m = maps && L && L->maps ? L->maps[i] : NULL;
-		if (m && L->not_casting && L->rmaps && L->rmaps[i])
+		if (m && (L->not_casting || L->follow) && L->rmaps && L->rmaps[i])
 			m = L->rmaps[i];
 		b[*nb] = (struct gpu_binding){ 0, false, s->zero, false };
 		if (!gpu_shadow_map_bind(s->ctx, k->prog, i, m, s->c2w, &b[*nb]))
@@ -704,6 +706,63 @@ static bool run_resolve(struct graph_node *n, void *user, bool *changed)
 	return true;
 }
 
+static bool light_from_to(struct gpu_shot *s, const struct light *L, float from[3],
+			  float to[3]);
+
+/*
+ * The camera of a map that follows its light: @w2c and @w2ndc (the file's
+ * camera on entry) moved to look from @from to @to (world space), keeping
+ * the projection, the handedness and, as far as it can, the up direction.
+ */
+static bool follow_camera(const float from[3], const float to[3], float w2c[16], float w2ndc[16])
+{
+	float c2w[16], proj[16];
+	if (!sl_m44_inverse(c2w, w2c))
+		return false;
+	sl_m44_mul(proj, c2w, w2ndc);   /* camera -> NDC */
+	float ax[3][3];
+	for (int r = 0; r < 3; r++) {
+		float len = sqrtf(c2w[r * 4] * c2w[r * 4] + c2w[r * 4 + 1] * c2w[r * 4 + 1] +
+				  c2w[r * 4 + 2] * c2w[r * 4 + 2]);
+		if (!(len > 0.0f))
+			return false;
+		for (int c = 0; c < 3; c++)
+			ax[r][c] = c2w[r * 4 + c] / len;
+	}
+	float z[3] = { to[0] - from[0], to[1] - from[1], to[2] - from[2] };
+	float zl = sqrtf(z[0] * z[0] + z[1] * z[1] + z[2] * z[2]);
+	if (!(zl > 0.0f) || !isfinite(zl))
+		return false;
+	for (int c = 0; c < 3; c++)
+		z[c] /= zl;
+	/* handedness of the file's camera: x = sign * (y cross z) */
+	float yz[3] = { ax[1][1] * ax[2][2] - ax[1][2] * ax[2][1], ax[1][2] * ax[2][0] - ax[1][0] * ax[2][2],
+			ax[1][0] * ax[2][1] - ax[1][1] * ax[2][0] };
+	float sign = ax[0][0] * yz[0] + ax[0][1] * yz[1] + ax[0][2] * yz[2] < 0.0f ? -1.0f : 1.0f;
+	float x[3] = { ax[1][1] * z[2] - ax[1][2] * z[1], ax[1][2] * z[0] - ax[1][0] * z[2],
+		       ax[1][0] * z[1] - ax[1][1] * z[0] };
+	float xl = sqrtf(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+	if (!(xl > 1e-4f)) {
+		/* looking along the old up: keep the old x, made square to z */
+		float d = ax[0][0] * z[0] + ax[0][1] * z[1] + ax[0][2] * z[2];
+		for (int c = 0; c < 3; c++)
+			x[c] = sign * (ax[0][c] - d * z[c]);
+		xl = sqrtf(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+		if (!(xl > 0.0f))
+			return false;
+	}
+	for (int c = 0; c < 3; c++)
+		x[c] = sign * x[c] / xl;
+	float y[3] = { sign * (z[1] * x[2] - z[2] * x[1]), sign * (z[2] * x[0] - z[0] * x[2]),
+		       sign * (z[0] * x[1] - z[1] * x[0]) };
+	float cw[16] = { x[0], x[1], x[2], 0, y[0], y[1], y[2], 0,
+			 z[0], z[1], z[2], 0, from[0], from[1], from[2], 1 };
+	if (!sl_m44_inverse(w2c, cw))
+		return false;
+	sl_m44_mul(w2ndc, w2c, proj);
+	return true;
+}
+
 /* A light's shadow-map node: the maps its kernels' shadow() sites read. */
 static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 {
@@ -747,9 +806,17 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 		}
 		L->rendered_version = 0;
 	}
-	/* objects left out of casting: render the maps again from the geometry,
-	 * with each map's camera, size and bias */
-	if (L->not_casting && L->rendered_version != L->cast_version) {
+	/* objects left out of casting, or cameras following the light: render
+	 * the maps again from the geometry */
+	float key[6] = { 0 };
+	bool moved = false;
+	if (L->follow) {
+		if (!light_from_to(s, L, key, key + 3))
+			return fail(s, "light '%s' has no 'from' and 'to' points for its shadow "
+				    "maps to follow", L->name);
+		moved = memcmp(key, L->follow_key, sizeof(key)) != 0;
+	}
+	if ((L->not_casting || L->follow) && (L->rendered_version != L->cast_version || moved)) {
 		for (uint32_t i = 0; i < L->nmaps; i++) {
 			gpu_shadow_map_destroy(L->rmaps[i]);
 			L->rmaps[i] = NULL;
@@ -759,6 +826,9 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 			float w2c[16], w2ndc[16];
 			gpu_shadow_map_size(L->maps[i], &w, &h);
 			gpu_shadow_map_camera(L->maps[i], w2c, w2ndc);
+			if (L->follow && !follow_camera(key, key + 3, w2c, w2ndc))
+				return fail(s, "light '%s': its shadow camera cannot look from its "
+					    "'from' to its 'to'", L->name);
 			if (!L->rdepth[i])
 				L->rdepth[i] = gpu_buffer_create(s->ctx, (size_t)w * h * sizeof(float), NULL);
 			if (!L->rdepth[i] ||
@@ -769,8 +839,12 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 			L->rmaps[i] = gpu_shadow_map_with_depth(L->maps[i], L->rdepth[i]);
 			if (!L->rmaps[i])
 				return fail(s, "out of memory");
+			gpu_shadow_map_set_camera(L->rmaps[i], w2c, w2ndc);
 		}
 		L->rendered_version = L->cast_version;
+		memcpy(L->follow_key, key, sizeof(key));
+		/* what the cache holds of the light was shaded with the old maps */
+		L->link_version = ++s->link_version;
 		*changed = true;
 	}
 	return true;
@@ -2388,6 +2462,48 @@ bool gpu_shot_cast_shadows(struct gpu_shot *s, const char *light, uint32_t objec
 		return true;
 	L->cast_cpu[object] = v;
 	L->not_casting += casts ? (uint32_t)-1 : 1u;
+	L->cast_version++;
+	L->link_version = ++s->link_version;
+	graph_touch(L->shadow_node);
+	touched(s, L);
+	return true;
+}
+
+/* Light @L's "from" and "to" points in world space. */
+static bool light_from_to(struct gpu_shot *s, const struct light *L, float from[3], float to[3])
+{
+	float f[16], t[16];
+	uint32_t nf, nt;
+	if (!gpu_shot_get(s, L->name, "from", f, &nf) || !gpu_shot_get(s, L->name, "to", t, &nt) ||
+	    nf != 3 || nt != 3)
+		return false;
+	/* the values are in current (camera) space */
+	sl_xform_point(from, s->c2w, f);
+	sl_xform_point(to, s->c2w, t);
+	return isfinite(from[0] + from[1] + from[2] + to[0] + to[1] + to[2]);
+}
+
+bool gpu_shot_shadow_follow(struct gpu_shot *s, const char *light, bool follow, char *err,
+			    size_t errlen)
+{
+	struct light *L = shadowed(s, light, err, errlen);
+	if (!L)
+		return false;
+	float f[3], t[3];
+	if (follow && !light_from_to(s, L, f, t)) {
+		errorf(err, errlen, "light '%s' (shader '%s') has no 'from' and 'to' points for its "
+		       "shadow maps to follow", L->name, s->lshaders[L->shader].prog->name);
+		return false;
+	}
+	if (follow && !s->shadow_geo) {
+		errorf(err, errlen, "the shot holds no shadow geometry the GPU can render: its maps "
+		       "cannot follow light '%s'", L->name);
+		return false;
+	}
+	if (L->follow == follow)
+		return true;
+	L->follow = follow;
+	memset(L->follow_key, 0, sizeof(L->follow_key));
 	L->cast_version++;
 	L->link_version = ++s->link_version;
 	graph_touch(L->shadow_node);

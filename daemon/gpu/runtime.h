@@ -156,6 +156,18 @@ bool gpu_shot_cast_shadows(struct gpu_shot *s, const char *light, uint32_t objec
 			   char *err, size_t errlen);
 
 /**
+ * Let light @light's shadow maps follow it (lightspeed-2007 §6.1): each map
+ * is rendered on the GPU from the shot's shadow geometry with a camera at
+ * the light's "from" looking at its "to", keeping the projection, size and
+ * bias of the map file (and its up direction, as far as it can). Off (the
+ * default), a moved light keeps its map's camera, as a render of the RIB
+ * edited the same way does. Refused for a light without shadow maps, without
+ * "from" and "to" points, or a shot without shadow geometry.
+ */
+bool gpu_shot_shadow_follow(struct gpu_shot *s, const char *light, bool follow, char *err,
+			    size_t errlen);
+
+/**
  * Set surface parameter @param, baked as editable (`relight bake
  * --dynamic-surface`), to @values on every object whose surface shader is
  * @shader (checked as light values are). The light cache is summed again.

@@ -92,6 +92,13 @@ struct gpu_shadow_map *gpu_shadow_map_with_depth(const struct gpu_shadow_map *li
 	return m;
 }
 
+void gpu_shadow_map_set_camera(struct gpu_shadow_map *m, const float world_to_camera[16],
+			       const float world_to_ndc[16])
+{
+	memcpy(m->world_to_camera, world_to_camera, 16 * sizeof(float));
+	memcpy(m->world_to_ndc, world_to_ndc, 16 * sizeof(float));
+}
+
 void gpu_shadow_map_camera(const struct gpu_shadow_map *m, float world_to_camera[16],
 			   float world_to_ndc[16])
 {

@@ -40,6 +40,10 @@ void gpu_shadow_map_size(const struct gpu_shadow_map *m, uint32_t *width, uint32
 struct gpu_shadow_map *gpu_shadow_map_with_depth(const struct gpu_shadow_map *like,
 						 struct gpu_buffer *depth);
 
+/** Give @m another camera (a map made by gpu_shadow_map_with_depth, re-rendered). */
+void gpu_shadow_map_set_camera(struct gpu_shadow_map *m, const float world_to_camera[16],
+			       const float world_to_ndc[16]);
+
 /** The camera of @m: world -> camera and world -> NDC (row vectors). */
 void gpu_shadow_map_camera(const struct gpu_shadow_map *m, float world_to_camera[16],
 			   float world_to_ndc[16]);

@@ -89,7 +89,7 @@ static const char shadow_scene[] =
 	"Translate 0 -0.6 4\nRotate -15 1 0 0\n"
 	"WorldBegin\n"
 	"  LightSource \"ambientlight\" 1 \"intensity\" 0.1\n"
-	"  LightSource \"shadowspot\" 2 \"intensity\" 14 \"from\" [0 4 1.7] \"to\" [0 0 1]"
+	"  LightSource \"shadowspot\" 2 \"intensity\" 14 \"from\" [0 4 1.7] \"to\" [0 0 1.7]"
 	" \"coneangle\" 0.9 SHADOWNAME\n"
 	"  Surface \"plastic\" \"Kd\" 0.7\n"
 	"  Polygon \"P\" [-3 0 -2  -3 0 4  3 0 4  3 0 -2]\n"
@@ -519,6 +519,43 @@ static void test_shadow_look(void)
 	g = image_of(on, true, sh);
 	CHECK(max_rel(g, cpu_on, n, NULL) <= REL_TOL);
 	free(g);
+
+	/* maps that follow the light: unmoved, the map file's camera (the key
+	 * light looks straight down, as the shadow pass does); moved, the
+	 * shot whose shadow pass and light moved together */
+	CHECK(!gpu_shot_shadow_follow(sh, "1", true, err, sizeof(err)));
+	CHECK(gpu_shot_shadow_follow(sh, "2", true, err, sizeof(err)));
+	g = image_of(on, true, sh);
+	double mean_rel = 0.0;
+	for (size_t i = 0; i < n; i++)
+		mean_rel += fabs((double)g[i] - cpu_on[i]) / (double)n;
+	printf("maps following the light, unmoved: mean difference %.3g, largest relative %.3g\n",
+	       mean_rel, max_rel(g, cpu_on, n, NULL));
+	CHECK(mean_rel <= 1e-3);
+	free(g);
+	char moved[512], mtext[4096], mtext2[4096];
+	replace_all(shadow_scene, "Translate 0 -4 -1.7", "Translate -0.6 -4 -1.2", mtext,
+		    sizeof(mtext));
+	replace_all(mtext, "\"from\" [0 4 1.7] \"to\" [0 0 1.7]",
+		    "\"from\" [0.6 4 1.2] \"to\" [0.6 0 1.2]", mtext2, sizeof(mtext2));
+	replace_all(mtext2, "key.", "mv.", mtext, sizeof(mtext));
+	CHECK(bake("moved", mtext, "SHADOWNAME", "\"shadowname\" \"mv.shd\" \"samples\" 16",
+		   "", moved, sizeof(moved)));
+	const float mfrom[3] = { 0.6f, 4, 1.2f }, mto[3] = { 0.6f, 0, 1.2f };
+	CHECK(gpu_shot_set(sh, "2", "from", mfrom, 3, err, sizeof(err)));
+	CHECK(gpu_shot_set(sh, "2", "to", mto, 3, err, sizeof(err)));
+	g = image_of(on, true, sh);
+	float *cpu_moved = image_of(moved, false, NULL);
+	mean_rel = 0.0;
+	for (size_t i = 0; i < n; i++)
+		mean_rel += fabs((double)g[i] - cpu_moved[i]) / (double)n;
+	printf("maps following the light, moved: mean difference %.3g, largest relative %.3g\n",
+	       mean_rel, max_rel(g, cpu_moved, n, NULL));
+	CHECK(mean_rel <= 1e-3);
+	/* and the shadow did move */
+	CHECK(max_rel(cpu_moved, cpu_on, n, NULL) > 0.1);
+	free(g);
+	free(cpu_moved);
 	free(want);
 	free(cpu_on);
 	free(cpu_off);
