@@ -35,6 +35,7 @@
 #include "shadowrender.h"
 #include "shotfile.h"
 #include "shotmeta.h"
+#include "builtin.h"
 #include "spec.h"
 #include "texture.h"
 
@@ -869,6 +870,52 @@ static struct gpu_buffer *buffer(struct gpu_shot *s, size_t bytes, const void *d
 	return b;
 }
 
+/*
+ * The GPU reads no texture or environment file: warn, naming the light and
+ * the file, when a light's texture() or environment() would read one (a
+ * string parameter that names it, such as uberlight's slide, set to a file):
+ * the preview then differs from the final frame where that light falls.
+ */
+static void warn_textures(struct gpu_shot *s, const struct light *L)
+{
+	const struct sl_program *p = s->lshaders[L->shader].prog;
+	for (uint32_t i = 0; i < p->ncode; i++) {
+		const struct sl_insn *in = &p->code[i];
+		if (in->op != SL_OP_CALL || in->bi < 0 || in->nargs < 1)
+			continue;
+		int id = sl_builtins[in->bi].id;
+		if (id != SL_BI_TEXTURE && id != SL_BI_ENVIRONMENT)
+			continue;
+		/* the name's register, back through copies, to a parameter */
+		int32_t r = in->args[0];
+		for (int hop = 0; hop < 8; hop++) {
+			int32_t from = -1;
+			for (uint32_t k = 0; k < p->ncode && from < 0; k++)
+				if (p->code[k].op == SL_OP_MOV && p->code[k].dst == r &&
+				    p->code[k].nargs == 1)
+					from = p->code[k].args[0];
+			bool is_param = false;
+			for (uint32_t k = 0; k < p->nparams; k++)
+				is_param = is_param || p->params[k].reg == r;
+			if (is_param || from < 0)
+				break;
+			r = from;
+		}
+		uint32_t si = 0;
+		for (uint32_t k = 0; k < p->nparams; k++) {
+			if (p->regs[p->params[k].reg].type != SL_TYPE_STRING)
+				continue;
+			if (p->params[k].reg == r && si < L->cur.ns && L->cur.s[si][0])
+				fprintf(s->diag, "relight: warning: %s: light '%s' reads %s '%s' "
+					"(parameter '%s'), which the GPU does not read: the preview "
+					"differs from the final frame where the light falls\n", s->path,
+					L->name, sl_builtins[in->bi].name, L->cur.s[si],
+					p->params[k].name);
+			si++;
+		}
+	}
+}
+
 static bool load_lights(struct gpu_shot *s)
 {
 	const cJSON *ls = cJSON_GetObjectItemCaseSensitive(s->meta, "lights");
@@ -908,6 +955,7 @@ static bool load_lights(struct gpu_shot *s)
 			return fail(s, "light '%s': its parameter defaults failed", name);
 		L->frozen = true;
 		L->shadow_density = 1.0f;
+		warn_textures(s, L);
 		L->node = graph_add(s->graph, name, GRAPH_PARAMS, NULL, NULL);
 	}
 	return true;

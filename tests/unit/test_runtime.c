@@ -673,6 +673,20 @@ static void test_nonlinear(void)
 	free(buf);
 	gpu_shot_close(sh);
 	gpu_shot_close(lin);
+
+	/* a light whose texture() names a file: the GPU says it does not read it */
+	char shot_tx[512];
+	CHECK(bake("slide", scene, "WorldBegin\n", "WorldBegin\n  LightSource \"uberlight\" 5 "
+		   "\"slidename\" \"slide.tx\" \"intensity\" 0.5\n", "", shot_tx, sizeof(shot_tx)));
+	buf = NULL;
+	mem = open_memstream(&buf, &len);
+	o.diag = mem;
+	sh = gpu_shot_open(ctx, shot_tx, &o);
+	fclose(mem);
+	CHECK(sh != NULL);
+	CHECK(buf && strstr(buf, "light '5' reads texture 'slide.tx' (parameter 'slidename')"));
+	free(buf);
+	gpu_shot_close(sh);
 }
 
 /* Metadata a shot file should never have, written with valid checksums:
