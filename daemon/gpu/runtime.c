@@ -1880,17 +1880,24 @@ bool gpu_shot_solo(struct gpu_shot *s, const char *light, char *err, size_t errl
 	return true;
 }
 
+/* Is @object one of the shot's objects (the bake's primitive ids)? */
+static bool known_object(const struct gpu_shot *s, uint32_t object, char *err, size_t errlen)
+{
+	if (object < s->nobjects)
+		return true;
+	errorf(err, errlen, "no object %u in the shot (its objects are 0 to %u)", object,
+	       s->nobjects - 1);
+	return false;
+}
+
 bool gpu_shot_link(struct gpu_shot *s, const char *light, uint32_t object, bool linked,
 		   char *err, size_t errlen)
 {
 	struct light *L = find(s, light, err, errlen);
 	if (!L)
 		return false;
-	if (object >= s->nobjects) {
-		errorf(err, errlen, "no object %u in the shot (its objects are 0 to %u)", object,
-		       s->nobjects - 1);
+	if (!known_object(s, object, err, errlen))
 		return false;
-	}
 	float v = linked ? 1.0f : 0.0f;
 	if (L->link_cpu[object] == v)
 		return true;
@@ -2469,11 +2476,8 @@ bool gpu_shot_receive_shadows(struct gpu_shot *s, const char *light, uint32_t ob
 	struct light *L = shadowed(s, light, err, errlen);
 	if (!L)
 		return false;
-	if (object >= s->nobjects) {
-		errorf(err, errlen, "no object %u in the shot (its objects are 0 to %u)", object,
-		       s->nobjects - 1);
+	if (!known_object(s, object, err, errlen))
 		return false;
-	}
 	float v = receives ? 1.0f : 0.0f;
 	if (L->recv_cpu[object] == v)
 		return true;
@@ -2495,11 +2499,8 @@ bool gpu_shot_cast_shadows(struct gpu_shot *s, const char *light, uint32_t objec
 	struct light *L = shadowed(s, light, err, errlen);
 	if (!L)
 		return false;
-	if (object >= s->nobjects) {
-		errorf(err, errlen, "no object %u in the shot (its objects are 0 to %u)", object,
-		       s->nobjects - 1);
+	if (!known_object(s, object, err, errlen))
 		return false;
-	}
 	if (!s->shadow_geo) {
 		errorf(err, errlen, "the shot holds no shadow geometry the GPU can render: casting "
 		       "cannot be edited");
