@@ -133,8 +133,7 @@ const float *shot_meta_channel(const struct shot_table *t, const cJSON *chans, c
 	return NULL;
 }
 
-/* The range a parameter's values must lie in, by what its name says it is. */
-static void param_range(const char *name, float *lo, float *hi)
+void shot_meta_param_range(const char *name, float *lo, float *hi)
 {
 	*lo = -MAX_MAGNITUDE;
 	*hi = MAX_MAGNITUDE;
@@ -183,7 +182,7 @@ bool shot_meta_check_edit(const struct sl_program *light, const char *who, const
 		return false;
 	}
 	float lo, hi;
-	param_range(param, &lo, &hi);
+	shot_meta_param_range(param, &lo, &hi);
 	for (uint32_t c = 0; c < m; c++) {
 		if (!isfinite(out[c])) {
 			snprintf(err, errlen, "%s: parameter '%s' needs finite values", who,

@@ -57,6 +57,14 @@ const float *shot_meta_channel(const struct shot_table *t, const cJSON *chans, c
 			       float **owned);
 
 /**
+ * The range the values of a light parameter named @name must lie in (what
+ * shot_meta_check_edit enforces, and what a client shows): angles of cones
+ * ("...angle") in [0, pi], "samples" in [1, 1024], anything else at most
+ * 1e18 in magnitude.
+ */
+void shot_meta_param_range(const char *name, float *lo, float *hi);
+
+/**
  * Check an edit of parameter @param of shader @light (@who names it in
  * messages: "light '3'", "surface 'plastic'") to
  * @values (@n of them): the parameter must exist, be a float, colour, point,
