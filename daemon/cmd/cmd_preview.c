@@ -15,7 +15,6 @@
 
 #include <errno.h>
 #include <getopt.h>
-#include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -132,14 +131,6 @@ static bool ends_with(const char *s, const char *suffix)
 	return n >= m && !strcmp(s + n - m, suffix);
 }
 
-/* A half's bits as a float. */
-static float half_value(uint16_t h)
-{
-	int e = (h >> 10) & 31, m = h & 1023;
-	float v = e == 0 ? ldexpf((float)m, -24) : ldexpf((float)(m | 1024), e - 25);
-	return h & 0x8000 ? -v : v;
-}
-
 /* Write level @level of @s: PNG (the GPU's 8-bit sRGB), EXR of half or float. */
 static bool write_gpu_image(struct gpu_shot *s, int level, const char *path, bool half)
 {
@@ -162,7 +153,7 @@ static bool write_gpu_image(struct gpu_shot *s, int level, const char *path, boo
 	uint16_t *hv = half ? malloc(n * 4 * sizeof(uint16_t) + 4) : NULL;
 	ok = f && (half ? hv && gpu_shot_read_half(s, level, hv) : gpu_shot_read_rgba(s, level, f));
 	for (size_t i = 0; ok && half && i < n * 4; i++)
-		f[i] = half_value(hv[i]);
+		f[i] = shot_half_value(hv[i]);
 	static const char *const names[4] = { "R", "G", "B", "A" };
 	struct reyes_image im = { .width = w, .height = h, .nchannels = 4,
 				  .channel_names = (const char **)names, .data = f };

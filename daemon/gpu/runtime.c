@@ -193,7 +193,6 @@ struct gpu_shot {
 	struct graph *graph;
 	struct graph_node *shade[NBANDS], *resolve[NBANDS];
 	struct gpu_shot_stats *stats;  /* of the call running, or NULL */
-	bool failed;
 };
 
 static bool fail(struct gpu_shot *s, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -463,13 +462,12 @@ static const char clear_src[] =
 /* ------------------------------------------------------------------------ */
 /* Shading                                                                   */
 
-static bool count_dispatch(struct gpu_shot *s, uint64_t shaded)
+static void count_dispatch(struct gpu_shot *s, uint64_t shaded)
 {
 	if (s->stats) {
 		s->stats->dispatches++;
 		s->stats->shaded += shaded;
 	}
-	return true;
 }
 
 /* Bind the shadow maps of kernel @k for light @L (NULL: the base kernel),
@@ -1890,25 +1888,40 @@ static bool known_object(const struct gpu_shot *s, uint32_t object, char *err, s
 	return false;
 }
 
+/*
+ * Set object @object's entry of one of light @L's per-object masks (links,
+ * shadow receivers, shadow casters) to @on: @cpu, its copy on the GPU @gpu
+ * (NULL: none) and *@off, the count of objects at 0 (NULL: not kept). What
+ * the cache holds of the light was shaded with the old mask, so its link
+ * version moves on. Returns 1 when the mask changed, 0 when it already was
+ * so, -1 on a GPU error (@what names the mask in the message).
+ */
+static int set_object_flag(struct gpu_shot *s, struct light *L, float *cpu, struct gpu_buffer *gpu,
+			   uint32_t *off, uint32_t object, bool on, const char *what, char *err,
+			   size_t errlen)
+{
+	float v = on ? 1.0f : 0.0f;
+	if (cpu[object] == v)
+		return 0;
+	if (gpu && !gpu_buffer_write(gpu, object * sizeof(float), sizeof(float), &v)) {
+		errorf(err, errlen, "updating the %s of light '%s' failed", what, L->name);
+		return -1;
+	}
+	cpu[object] = v;
+	if (off)
+		*off += on ? (uint32_t)-1 : 1u;
+	L->link_version = ++s->link_version;
+	touched(s, L);
+	return 1;
+}
+
 bool gpu_shot_link(struct gpu_shot *s, const char *light, uint32_t object, bool linked,
 		   char *err, size_t errlen)
 {
 	struct light *L = find(s, light, err, errlen);
-	if (!L)
-		return false;
-	if (!known_object(s, object, err, errlen))
-		return false;
-	float v = linked ? 1.0f : 0.0f;
-	if (L->link_cpu[object] == v)
-		return true;
-	L->link_cpu[object] = v;
-	if (!gpu_buffer_write(L->link, object * sizeof(float), sizeof(float), &v)) {
-		errorf(err, errlen, "updating the links of light '%s' failed", L->name);
-		return false;
-	}
-	L->link_version = ++s->link_version;
-	touched(s, L);
-	return true;
+	return L && known_object(s, object, err, errlen) &&
+	       set_object_flag(s, L, L->link_cpu, L->link, NULL, object, linked, "links", err,
+			       errlen) >= 0;
 }
 
 bool gpu_shot_freeze(struct gpu_shot *s, const char *light, bool frozen, char *err,
@@ -2474,23 +2487,9 @@ bool gpu_shot_receive_shadows(struct gpu_shot *s, const char *light, uint32_t ob
 			      bool receives, char *err, size_t errlen)
 {
 	struct light *L = shadowed(s, light, err, errlen);
-	if (!L)
-		return false;
-	if (!known_object(s, object, err, errlen))
-		return false;
-	float v = receives ? 1.0f : 0.0f;
-	if (L->recv_cpu[object] == v)
-		return true;
-	if (!gpu_buffer_write(L->recv, object * sizeof(float), sizeof(float), &v)) {
-		errorf(err, errlen, "updating the shadow receivers of light '%s' failed", L->name);
-		return false;
-	}
-	L->recv_cpu[object] = v;
-	L->not_receiving += receives ? (uint32_t)-1 : 1u;
-	/* as for links: what the cache holds of the light was made with the old ones */
-	L->link_version = ++s->link_version;
-	touched(s, L);
-	return true;
+	return L && known_object(s, object, err, errlen) &&
+	       set_object_flag(s, L, L->recv_cpu, L->recv, &L->not_receiving, object, receives,
+			       "shadow receivers", err, errlen) >= 0;
 }
 
 bool gpu_shot_cast_shadows(struct gpu_shot *s, const char *light, uint32_t object, bool casts,
@@ -2506,15 +2505,12 @@ bool gpu_shot_cast_shadows(struct gpu_shot *s, const char *light, uint32_t objec
 		       "cannot be edited");
 		return false;
 	}
-	float v = casts ? 1.0f : 0.0f;
-	if (L->cast_cpu[object] == v)
-		return true;
-	L->cast_cpu[object] = v;
-	L->not_casting += casts ? (uint32_t)-1 : 1u;
-	L->cast_version++;
-	L->link_version = ++s->link_version;
-	graph_touch(L->shadow_node);
-	touched(s, L);
+	/* on the CPU alone: the maps are rendered again from it */
+	if (set_object_flag(s, L, L->cast_cpu, NULL, &L->not_casting, object, casts,
+			    "shadow casters", err, errlen) > 0) {
+		L->cast_version++;
+		graph_touch(L->shadow_node);
+	}
 	return true;
 }
 

@@ -265,6 +265,16 @@ static bool half_to_float(uint16_t h, float *out)
 	return true;
 }
 
+float shot_half_value(uint16_t h)
+{
+	float v;
+	if (half_to_float(h, &v))
+		return v;
+	if (h & 0x3ffu)
+		return NAN;
+	return h & 0x8000u ? -INFINITY : INFINITY;
+}
+
 float shot_half_round(float v)
 {
 	float out = 0.0f;

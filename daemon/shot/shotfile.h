@@ -123,6 +123,9 @@ const struct shot_deep *shot_find_deep(const struct shot_file *f, const char *na
  */
 float shot_half_round(float v);
 
+/** The value of half-float bits @h (exact; infinities and NaN as themselves). */
+float shot_half_value(uint16_t h);
+
 /** The 64-bit content hash used for checksums (exposed for tests and content hashes). */
 uint64_t shot_hash(const void *data, size_t len, uint64_t seed);
 

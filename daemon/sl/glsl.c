@@ -37,6 +37,7 @@
  * b * a.
  */
 #include "glsl_impl.h"
+#include "spec.h"
 #include "exec_impl.h"
 #include "config.h"
 
@@ -1698,40 +1699,22 @@ static bool replayable(const struct sl_program *prog, const struct sl_insn *in)
 	}
 }
 
-/* The registers whose derivatives @in takes on the GPU (up to 2); returns how many. */
+/*
+ * The registers whose derivatives @in takes on the GPU (up to 2); returns
+ * how many. The interpreter's (spec.h), less texture() and environment(),
+ * which read no file on the GPU (the fill), and shadow() other than by one
+ * lookup point.
+ */
 static int deriv_operands(const struct sl_program *prog, const struct sl_insn *in, int32_t r[2])
 {
-	if (in->op != SL_OP_CALL)
-		return 0;
-	const int32_t *a = in->args;
-	switch (sl_builtins[in->bi].id) {
-	case SL_BI_DU: case SL_BI_DV: case SL_BI_AREA: case SL_BI_CALCULATENORMAL:
-		r[0] = in->nargs >= 1 ? a[0] : -1;
-		return r[0] >= 0;
-	case SL_BI_DERIV:
-		if (in->nargs < 2)
+	if (in->op == SL_OP_CALL && in->bi >= 0 && (uint32_t)in->bi < sl_nbuiltins) {
+		int id = sl_builtins[in->bi].id;
+		if (id == SL_BI_TEXTURE || id == SL_BI_ENVIRONMENT)
 			return 0;
-		r[0] = a[0];
-		r[1] = a[1];
-		return 2;
-	case SL_BI_FILTERSTEP:
-		if (in->nargs < 2 || numeric_args(prog, in, 0) >= 3)
+		if (id == SL_BI_SHADOW && (in->nargs < 3 || numeric_args(prog, in, 2) != 1))
 			return 0;
-		r[0] = a[1];
-		return 1;
-	case SL_BI_SHADOW:
-		/* Only a lookup by the lookup point's derivatives; texture() and
-		 * environment() with names known at run time give the fill. */
-		if (in->nargs < 3 || numeric_args(prog, in, 2) != 1 ||
-		    (prog->regs[a[0]].kind == SL_REG_CONST && prog->strings &&
-		     prog->strings[prog->regs[a[0]].cindex] &&
-		     !prog->strings[prog->regs[a[0]].cindex][0]))
-			return 0;
-		r[0] = a[2];
-		return 1;
-	default:
-		return 0;
 	}
+	return sl_spec_deriv_operands(prog, in, r);
 }
 
 /* The registers @in reads: its arguments, a partly written destination, an implicit global. */

@@ -123,7 +123,7 @@ static int numeric_args(const struct sl_program *prog, const struct sl_insn *in,
  * corners take none, nor does a lookup of the constant empty name (the
  * fill, no map). Writes up to 2 registers to @r and returns how many.
  */
-static int deriv_operands(const struct sl_program *prog, const struct sl_insn *in, int32_t r[2])
+int sl_spec_deriv_operands(const struct sl_program *prog, const struct sl_insn *in, int32_t r[2])
 {
 	if (in->op != SL_OP_CALL || in->bi < 0 || (uint32_t)in->bi >= sl_nbuiltins)
 		return 0;
@@ -175,7 +175,7 @@ bool sl_program_takes_derivatives(const struct sl_program *prog)
 		return false;
 	for (uint32_t i = 0; i < prog->ncode; i++) {
 		int32_t r[2];
-		int n = deriv_operands(prog, &prog->code[i], r);
+		int n = sl_spec_deriv_operands(prog, &prog->code[i], r);
 		for (int k = 0; k < n; k++)
 			if (r[k] >= 0 && prog->regs[r[k]].varying)
 				return true;
@@ -631,7 +631,7 @@ static void mark_derivatives(struct sl_spec *s, unsigned flags)
 			continue;
 		const struct sl_insn *in = &p->code[i];
 		int32_t r[2];
-		int n = deriv_operands(p, in, r);
+		int n = sl_spec_deriv_operands(p, in, r);
 		for (int k = 0; k < n; k++)
 			need_deriv(p, need, r[k], &changed);
 		if (!(flags & SL_SPEC_LIGHT_DERIVATIVES))

@@ -110,6 +110,15 @@ enum {
  */
 bool sl_program_takes_derivatives(const struct sl_program *prog);
 
+/**
+ * The values whose derivatives call @in takes, as the interpreter does: the
+ * operand of Du, Dv, area and calculatenormal, both of Deriv, filterstep's
+ * s1 when no s2 gives the width, and the coordinates a texture, environment
+ * or shadow lookup of a map builds its filter region around. Writes up to
+ * 2 registers to @r and returns how many.
+ */
+int sl_spec_deriv_operands(const struct sl_program *prog, const struct sl_insn *in, int32_t r[2]);
+
 /** sl_specialize with @flags (SL_SPEC_*). */
 struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *const *dynamic_params,
 				 size_t ndynamic, unsigned flags, FILE *diag);

@@ -146,14 +146,6 @@ static float *cpu_image(int level, const struct resolve_edit *e, size_t ne)
 	return r.rgba;
 }
 
-/* A half's bits as a float. */
-static float half_value(uint16_t h)
-{
-	int e = (h >> 10) & 31, m = h & 1023;
-	float v = e == 0 ? ldexpf((float)m, -24) : ldexpf((float)(m | 1024), e - 25);
-	return h & 0x8000 ? -v : v;
-}
-
 /* The linear half and 8-bit outputs: exactly the CPU's conversions of the floats. */
 static void test_outputs(void)
 {
@@ -164,7 +156,7 @@ static void test_outputs(void)
 	CHECK(gpu_shot_read_half(shot, 3, h) && gpu_shot_read_srgb8(shot, 3, px));
 	size_t bad_half = 0, bad8 = 0;
 	for (size_t i = 0; i < n * 4; i++)
-		bad_half += half_value(h[i]) != shot_half_round(f[i]);
+		bad_half += shot_half_value(h[i]) != shot_half_round(f[i]);
 	for (size_t i = 0; i < n; i++) {
 		uint32_t want = 0;
 		for (int c = 0; c < 3; c++)
