@@ -325,15 +325,16 @@ static float string_id(const struct sl_glsl_layout *lay, const char *s)
 	return (float)lay->nstrings + 7.0f;
 }
 
-/* Set the uniforms @prefix + NAME of @prog's parameters from @st. */
+/* Set the uniforms of @prog's parameters from @st: those of light @light of
+ * the kernel, or of its surface with @light < 0 (sl_glsl_param_uniform). */
 static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *lay,
-			 const struct sl_program *prog, const struct lstate *st, const char *prefix)
+			 const struct sl_program *prog, const struct lstate *st, int light)
 {
 	uint32_t at = 0, si = 0;
 	for (uint32_t k = 0; k < prog->nparams; k++) {
 		const struct sl_reg *g = &prog->regs[prog->params[k].reg];
 		char name[320];
-		snprintf(name, sizeof(name), "%s%s", prefix, prog->params[k].name);
+		sl_glsl_param_uniform(name, sizeof(name), light, prog->params[k].name);
 		if (g->type == SL_TYPE_STRING) {
 			if (si < st->ns) {
 				float id = string_id(lay, st->s[si]);
@@ -511,7 +512,7 @@ static bool shade_pass(struct gpu_shot *s, struct light *L, const struct lstate 
 		struct kernel *k = L ? &sf->lk[L->shader] : &sf->base;
 		const struct sl_program *lp = L ? s->lshaders[L->shader].prog : NULL;
 		if (L) {
-			set_uniforms(k->prog, &k->layout, lp, st, "l0_");
+			set_uniforms(k->prog, &k->layout, lp, st, 0);
 			gpu_uniform_mat4(k->prog, "l0_shader", L->to_camera);
 		}
 		gpu_uniform_mat4(k->prog, "space_world", s->w2c);
@@ -526,7 +527,7 @@ static bool shade_pass(struct gpu_shot *s, struct light *L, const struct lstate 
 			const struct run *ru = &sf->runs[band].data[r];
 			if (sf->nparamsets && ru->paramset < sf->nparamsets)
 				set_uniforms(k->prog, &k->layout, sf->spec->dynamic,
-					     &sf->pvals[ru->paramset], "p_");
+					     &sf->pvals[ru->paramset], -1);
 			gpu_uniform_int(k->prog, "u_first", (int)ru->first);
 			if (!gpu_dispatch(s->ctx, k->prog, b, nb, ru->count))
 				return fail(s, "shading '%s' on the GPU failed", sf->name);
@@ -2137,11 +2138,11 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 		if (!sf->nrows)
 			continue;
 		struct kernel *k = &sf->lk[L->shader];
-		set_uniforms(k->prog, &k->layout, s->lshaders[L->shader].prog, &L->cur, "l0_");
+		set_uniforms(k->prog, &k->layout, s->lshaders[L->shader].prog, &L->cur, 0);
 		gpu_uniform_mat4(k->prog, "l0_shader", L->to_camera);
 		gpu_uniform_mat4(k->prog, "space_world", s->w2c);
 		if (sf->nparamsets)
-			set_uniforms(k->prog, &k->layout, sf->spec->dynamic, &sf->pvals[0], "p_");
+			set_uniforms(k->prog, &k->layout, sf->spec->dynamic, &sf->pvals[0], -1);
 		gpu_uniform_int(k->prog, "u_first", 0);
 		struct gpu_binding b[2 + 64];
 		uint32_t nb = 0;

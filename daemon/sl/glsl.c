@@ -960,7 +960,9 @@ static const char *category_test(struct glsl_gen *g, const char *cat, int k)
 	const struct sl_reg *rg = pk >= 0 ? &lp->regs[lp->params[pk].reg] : NULL;
 	if (!rg || rg->type != SL_TYPE_STRING || rg->arraylen)
 		return sl_category_match(cat, "") ? "" : NULL;
-	const char *u = SL_GLSL_FMT(g, "l%d___category", k);
+	char uname[64];
+	sl_glsl_param_uniform(uname, sizeof(uname), (int)k, "__category");
+	const char *u = SL_GLSL_FMT(g, "%s", uname);
 	struct rl_strbuf b = { 0 };
 	size_t nmatch = 0;
 	for (size_t i = 0; i < g->strings.len; i++) {
@@ -1406,14 +1408,34 @@ static void zero_arrays(struct glsl_gen *g)
 	}
 }
 
+void sl_glsl_param_uniform(char *out, size_t cap, int light, const char *name)
+{
+	char head[16];
+	if (light >= 0)
+		snprintf(head, sizeof(head), "l%d", light);
+	else
+		snprintf(head, sizeof(head), "p");
+	if (name[0] != '_' && !strstr(name, "__")) {
+		snprintf(out, cap, "%s_%s", head, name);
+		return;
+	}
+	size_t n = (size_t)snprintf(out, cap, "%sU", head);
+	for (const char *c = name; *c && n + 3 < cap; c++) {
+		out[n++] = *c;
+		if (*c == '_')
+			out[n++] = '0';
+	}
+	if (n < cap)
+		out[n] = '\0';
+}
+
 /* The uniform holding parameter @k of the current program. */
 static const char *param_uniform(struct glsl_gen *g, uint32_t k)
 {
 	const struct glsl_prog *p = g->cur;
-	const char *name = p->prog->params[k].name;
-	if (p->light >= 0)
-		return SL_GLSL_FMT(g, "l%d_%s", p->light, name);
-	return SL_GLSL_FMT(g, "p_%s", name);
+	char name[320];
+	sl_glsl_param_uniform(name, sizeof(name), p->light, p->prog->params[k].name);
+	return SL_GLSL_FMT(g, "%s", name);
 }
 
 /* Declare the uniforms of the current program's parameters (but @skip) and copy them in. */

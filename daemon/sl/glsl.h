@@ -122,4 +122,14 @@ char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lig
 
 void sl_glsl_layout_finish(struct sl_glsl_layout *layout);
 
+/**
+ * The name of the uniform holding parameter @name of light @light (0, 1, ...
+ * in the order given to sl_glsl_emit) or, with @light < 0, of the surface:
+ * "l0_intensity", "p_Kd". GLSL reserves every name containing "__", so a
+ * parameter whose uniform would contain one ("__category", "_x") is written
+ * with 'U' for the separator and each '_' as "_0": "l0U_0_0category".
+ * The two forms never meet, and neither contains "__".
+ */
+void sl_glsl_param_uniform(char *out, size_t cap, int light, const char *name);
+
 #endif

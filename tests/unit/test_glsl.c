@@ -83,8 +83,34 @@ static struct sl_program *load(const char *name)
 }
 
 /* Validate @src offline: it must pass (when glslangValidator is there at all). */
+/* The first identifier of @src, outside comments, holding "__" (GLSL reserves
+ * those names: NVIDIA's compiler refuses them where Mesa's accepts them). */
+static const char *reserved_name(const char *src)
+{
+	for (const char *c = src; *c; c++) {
+		if (c[0] == '/' && c[1] == '/') {
+			while (*c && *c != '\n')
+				c++;
+			if (!*c)
+				break;
+		} else if (c[0] == '/' && c[1] == '*') {
+			const char *e = strstr(c + 2, "*/");
+			if (!e)
+				break;
+			c = e + 1;
+		} else if (c[0] == '_' && c[1] == '_') {
+			return c;
+		}
+	}
+	return NULL;
+}
+
 static void check_valid(const char *what, const char *src)
 {
+	const char *rsv = reserved_name(src);
+	if (rsv)
+		fprintf(stderr, "%s: generated GLSL has a reserved name near '%.24s'\n", what, rsv);
+	CHECK(rsv == NULL);
 	int v = gpu_validate_glsl(src, stderr);
 	if (v < 0) {
 		if (have_validator)
@@ -351,9 +377,9 @@ static void set_param_uniforms(struct xc *c, int i, struct gpu_program *gp,
 			continue;
 		char name[300];
 		if (i == 0)
-			snprintf(name, sizeof(name), "p_%s", p->params[k].name);
+			sl_glsl_param_uniform(name, sizeof(name), -1, p->params[k].name);
 		else
-			snprintf(name, sizeof(name), "l%d_%s", i - 1, p->params[k].name);
+			sl_glsl_param_uniform(name, sizeof(name), i - 1, p->params[k].name);
 		uint32_t ne = rg->arraylen > 0 ? (uint32_t)rg->arraylen : 1;
 		uint32_t stride = rg->varying ? sl_exec_stride(c->ix[i]) : 1;
 		if (rg->type == SL_TYPE_STRING) {
