@@ -6,6 +6,7 @@
  */
 #include "bake.h"
 #include "shadowgeo.h"
+#include "ri.h"
 
 #include "arena.h"
 #include "config.h"
@@ -85,6 +86,23 @@ static double now(void)
 	struct timespec ts;
 	clock_gettime(CLOCK_MONOTONIC, &ts);
 	return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
+}
+
+/* The shares of bake_scene's progress: rendering takes most of the time,
+ * compaction and writing the rest. */
+#define SHARE_RENDER 0.8
+#define SHARE_COMPACT 0.85
+#define SHARE_WRITE 0.9
+
+static void report(const struct bake *b, double fraction, const char *what)
+{
+	if (b->o->progress_fn)
+		b->o->progress_fn(b->o->progress_user, fraction, what);
+}
+
+static void render_progress(void *user, double fraction)
+{
+	report(user, SHARE_RENDER * fraction, "rendering");
 }
 
 /* ---- groups ---- */
@@ -811,6 +829,7 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 	size_t npix = (size_t)W * H;
 	uint64_t nid = b->next_id;
 	bool ok = true;
+	report(b, SHARE_COMPACT, "compacting");
 
 	/* Every id's group and chunk. */
 	struct idinfo ii;
@@ -1136,6 +1155,8 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 	};
 	double t0 = now();
 	char err[1024] = "";
+	if (ok)
+		report(b, SHARE_WRITE, "writing");
 	if (ok && (!meta || !shot_write(path, &sf, &b->o->write, err, sizeof(err)))) {
 		fprintf(b->diag, "relight: error: %s\n", meta ? err : "out of memory");
 		ok = false;
@@ -1185,7 +1206,9 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 	};
 	struct reyes_render_opts ro = {
 		.threads = opts->threads, .progress = opts->progress, .diag = b.diag, .bake = &hooks,
+		.progress_fn = opts->progress_fn ? render_progress : NULL, .progress_user = &b,
 	};
+	report(&b, 0.0, "rendering");
 	struct reyes_stats rs = { 0 };
 	bool ok = reyes_render(scene, &ro, &rs) && !b.failed;
 	st->render_seconds = rs.seconds;
@@ -1206,6 +1229,8 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 		ok = bake_shadow_geometry(scene, b.shadow_rate, b.diag, &b.shadow);
 	if (ok)
 		ok = write_shot(&b, path, st);
+	if (ok)
+		report(&b, 1.0, "done");
 
 	for (size_t k = 0; k < b.buckets.len; k++) {
 		free(b.buckets.data[k].offsets);
@@ -1221,5 +1246,128 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 	bake_shadow_geometry_free(&b.shadow);
 	rl_vec_free(b.casters);
 	pthread_mutex_destroy(&b.lock);
+	return ok;
+}
+
+/* ---- a RIB file ---- */
+
+/* Shadow passes share the first part of a RIB file's progress: as their
+ * number is not known ahead, each takes half of what is left of that part. */
+#define SHARE_SHADOW_PASSES 0.3
+
+struct rib_bake {
+	const struct bake_opts *o;   /* the caller's */
+	struct bake_opts bo;         /* the same, with its progress mapped into [lo, hi] */
+	const char *rib, *out;
+	FILE *diag;
+	bool verbose;
+	int frames, baked;
+	double lo, hi, last;         /* the current step's share; the last fraction reported */
+	struct bake_stats *stats;
+};
+
+static void rib_report(struct rib_bake *j, double fraction, const char *what)
+{
+	if (!j->o->progress_fn)
+		return;
+	double f = fraction < 0.0 ? 0.0 : fraction > 1.0 ? 1.0 : fraction;
+	double g = j->lo + (j->hi - j->lo) * f;
+	/* never backwards, whatever the steps report */
+	if (g < j->last)
+		g = j->last;
+	j->last = g;
+	j->o->progress_fn(j->o->progress_user, g, what);
+}
+
+static void rib_bake_progress(void *user, double fraction, const char *what)
+{
+	rib_report(user, fraction, what);
+}
+
+static void rib_pass_progress(void *user, double fraction)
+{
+	rib_report(user, fraction, "shadow pass");
+}
+
+static bool rib_frame(void *user, const struct reyes_scene *scene)
+{
+	struct rib_bake *j = user;
+	j->frames++;
+	if (reyes_scene_is_shadow_pass(scene)) {
+		bool report_it = j->o->progress_fn && !j->baked;
+		if (report_it) {
+			j->lo = j->last;
+			j->hi = j->last < SHARE_SHADOW_PASSES
+					? j->last + (SHARE_SHADOW_PASSES - j->last) / 2.0
+					: j->last;
+		}
+		struct reyes_render_opts ro = {
+			.threads = j->o->threads, .diag = j->diag,
+			.progress_fn = report_it ? rib_pass_progress : NULL, .progress_user = j,
+		};
+		if (j->verbose)
+			fprintf(j->diag, "frame %d: a shadow pass, rendered\n", j->frames);
+		return reyes_render(scene, &ro, NULL);
+	}
+	if (j->baked) {
+		fprintf(j->diag, "%s: warning: frame %d is not baked (one shot holds one frame; "
+			"frame %d was baked)\n", j->rib, j->frames, j->baked);
+		return true;
+	}
+	if (j->verbose)
+		fprintf(j->diag, "frame %d: %ux%u, %u primitives, %u lights: baking\n", j->frames,
+			scene->opts.xres, scene->opts.yres, scene->nprims, scene->nlights);
+	j->lo = j->last;
+	j->hi = 1.0;
+	struct bake_stats *st = j->stats;
+	if (!bake_scene(scene, j->out, &j->bo, st))
+		return false;
+	j->baked = j->frames;
+	if (j->verbose)
+		fprintf(j->diag,
+			"wrote %s: %ux%u, %llu shading samples kept of %llu shaded, %llu indirect "
+			"entries for %llu subpixel samples; render %.2f s, write %.2f s\n",
+			j->out, st->width, st->height, (unsigned long long)st->shading_samples,
+			(unsigned long long)st->shaded_points,
+			(unsigned long long)st->indirect_entries,
+			(unsigned long long)st->subpixel_samples, st->render_seconds,
+			st->write_seconds);
+	return true;
+}
+
+bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opts, bool verbose,
+		   struct bake_stats *stats)
+{
+	struct bake_stats local = { 0 };
+	struct rib_bake j = {
+		.o = opts, .bo = *opts, .rib = rib, .out = out,
+		.diag = opts->diag ? opts->diag : stderr, .verbose = verbose,
+		.stats = stats ? stats : &local,
+	};
+	memset(j.stats, 0, sizeof(*j.stats));
+	j.bo.diag = j.diag;
+	j.bo.progress_fn = opts->progress_fn ? rib_bake_progress : NULL;
+	j.bo.progress_user = &j;
+
+	/* The reader puts the standard library after any path it is given. */
+	const char *shader_path = opts->shader_path;
+	if (!shader_path) {
+		const char *env = getenv("RELIGHT_SHADER_PATH");
+		shader_path = env && *env ? env : NULL;
+	}
+	struct reyes_ri_opts ri = {
+		.diag = j.diag,
+		.default_shader_path = shader_path,
+		.default_texture_path = ".",
+		.frame = rib_frame,
+		.user = &j,
+	};
+	rib_report(&j, 0.0, "reading");
+	bool ok = reyes_ri_read(rib, &ri, NULL);
+	if (ok && !j.baked) {
+		fprintf(j.diag, "%s: error: the scene has no frame to bake (no WorldBegin ... "
+			"WorldEnd other than shadow passes)\n", rib);
+		ok = false;
+	}
 	return ok;
 }

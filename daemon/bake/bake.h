@@ -30,6 +30,13 @@
 #include <stdint.h>
 #include <stdio.h>
 
+/**
+ * Progress of a bake: @fraction of the work done, in [0, 1] and never
+ * decreasing; @what a short phrase ("rendering", "writing"). Called on the
+ * thread that called the bake.
+ */
+typedef void (*bake_progress_fn)(void *user, double fraction, const char *what);
+
 struct bake_opts {
 	/* Surface parameters a user may edit (made dynamic in every surface
 	 * shader that has them). */
@@ -47,6 +54,11 @@ struct bake_opts {
 	 * BAKE_DEFAULT_SHADOW_RATE). */
 	float shadow_rate;
 	bool full_float;           /* store no channel as half */
+	bake_progress_fn progress_fn;  /* NULL: none (independent of @progress) */
+	void *progress_user;
+	/* bake_rib_file's shader search path, colon-separated (NULL:
+	 * $RELIGHT_SHADER_PATH, then the standard library). */
+	const char *shader_path;
 };
 
 #define BAKE_DEFAULT_TILE_BUDGET (512ull << 20)
@@ -80,5 +92,19 @@ struct bake_stats {
  */
 bool bake_scene(const struct reyes_scene *scene, const char *path, const struct bake_opts *opts,
 		struct bake_stats *stats);
+
+/**
+ * Bake the RIB file @rib as `relight bake` does: read it, render its shadow
+ * passes (frames whose every display is a depth map) as they are, so that
+ * the maps later frames read exist, and bake the first other frame to the
+ * shot file @out (later frames are left out with a warning). Errors, with
+ * the RIB's file and line, go to opts->diag; so do a line per frame and the
+ * summary when @verbose. Relative file names in the scene (displays,
+ * textures) are relative to the working directory. Progress runs from 0 to
+ * 1 over the whole file. False on failure, or when the file has no frame to
+ * bake. @stats (the baked frame's) may be NULL.
+ */
+bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opts, bool verbose,
+		   struct bake_stats *stats);
 
 #endif

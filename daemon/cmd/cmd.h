@@ -42,6 +42,9 @@ int cmd_render(int argc, char **argv);
 /** `relight diff`: compare two rendered images; print the errors, optionally a heat map PNG. */
 int cmd_diff(int argc, char **argv);
 
+/** `relight remote`: drive a running relightd over WebSocket (clients/remote/remote.h). */
+int cmd_remote(int argc, char **argv);
+
 /** `relight bake`: bake a RIB scene into a shot file for the preview. */
 int cmd_bake(int argc, char **argv);
 

@@ -4,7 +4,6 @@
  */
 #include "cmd.h"
 #include "bake.h"
-#include "ri.h"
 #include "config.h"
 
 #include <errno.h>
@@ -64,41 +63,7 @@ struct bake_job {
 	struct bake_opts bo;
 	const char *output;
 	bool quiet;
-	int frames, baked;
 };
-
-static bool on_frame(void *user, const struct reyes_scene *scene)
-{
-	struct bake_job *j = user;
-	j->frames++;
-	if (reyes_scene_is_shadow_pass(scene)) {
-		struct reyes_render_opts ro = { .threads = j->bo.threads, .diag = stderr };
-		if (!j->quiet)
-			fprintf(stderr, "frame %d: a shadow pass, rendered\n", j->frames);
-		return reyes_render(scene, &ro, NULL);
-	}
-	if (j->baked) {
-		fprintf(stderr, "relight bake: warning: frame %d is not baked (one shot holds one "
-			"frame; frame %d was baked)\n", j->frames, j->baked);
-		return true;
-	}
-	if (!j->quiet)
-		fprintf(stderr, "frame %d: %ux%u, %u primitives, %u lights: baking\n", j->frames,
-			scene->opts.xres, scene->opts.yres, scene->nprims, scene->nlights);
-	struct bake_stats st;
-	if (!bake_scene(scene, j->output, &j->bo, &st))
-		return false;
-	j->baked = j->frames;
-	if (!j->quiet)
-		fprintf(stderr,
-			"wrote %s: %ux%u, %llu shading samples kept of %llu shaded, %llu indirect "
-			"entries for %llu subpixel samples; render %.2f s, write %.2f s\n",
-			j->output, st.width, st.height, (unsigned long long)st.shading_samples,
-			(unsigned long long)st.shaded_points,
-			(unsigned long long)st.indirect_entries,
-			(unsigned long long)st.subpixel_samples, st.render_seconds, st.write_seconds);
-	return true;
-}
 
 /* Split "a,b,c" into a NULL-terminated array (one malloc'd block). */
 static char **split_list(const char *s, size_t *n)
@@ -249,22 +214,8 @@ int cmd_bake(int argc, char **argv)
 	job.bo.progress = !job.quiet && isatty(2);
 	job.bo.diag = stderr;
 
-	char shader_path[8192];
-	cmd_shader_path(shader_path, sizeof(shader_path));
-	struct reyes_ri_opts ri = {
-		.diag = stderr,
-		.default_shader_path = shader_path,
-		.default_texture_path = ".",
-		.frame = on_frame,
-		.user = &job,
-	};
-	int nerrors = 0;
-	bool ok = job.output && reyes_ri_read(path, &ri, &nerrors);
-	if (ok && !job.baked) {
-		fprintf(stderr, "%s: error: the scene has no frame to bake (no WorldBegin ... "
-			"WorldEnd other than shadow passes)\n", path);
-		ok = false;
-	}
+	/* Shaders: the default search path ($RELIGHT_SHADER_PATH, then the library). */
+	bool ok = job.output && bake_rib_file(path, job.output, &job.bo, !job.quiet, NULL);
 	if (!ok)
 		rc = CMD_FAILED;
 	free(dyn);

@@ -23,6 +23,7 @@ static const struct command commands[] = {
 	{ "info", cmd_info, "Describe a shot file: lights, surfaces, samples, entries, bytes" },
 	{ "preview", cmd_preview, "Relight a shot file and write the image (--cpu: the reference)" },
 	{ "diff", cmd_diff, "Compare two rendered images: errors, PSNR, a heat map" },
+	{ "remote", cmd_remote, "Drive a running relightd: scripted edits, snapshots, stats" },
 };
 
 static const size_t ncommands = sizeof(commands) / sizeof(commands[0]);

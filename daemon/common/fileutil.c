@@ -3,6 +3,7 @@
 #include "arena.h"
 
 #include <errno.h>
+#include <pthread.h>
 #include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -14,6 +15,22 @@ static void set_err(char *err, size_t errlen, const char *path, const char *what
 {
 	if (err && errlen)
 		snprintf(err, errlen, "%s: %s", path, what);
+}
+
+/* The umask, read once: reading it means setting it, which must not race
+ * with another thread's file creation (the daemon bakes on several). */
+static mode_t umask_value;
+static void read_umask(void)
+{
+	umask_value = umask(0);
+	umask(umask_value);
+}
+
+static mode_t process_umask(void)
+{
+	static pthread_once_t once = PTHREAD_ONCE_INIT;
+	pthread_once(&once, read_umask);
+	return umask_value;
 }
 
 bool rl_atomic_open(struct rl_atomic *a, const char *path)
@@ -36,8 +53,7 @@ bool rl_atomic_open(struct rl_atomic *a, const char *path)
 	}
 	/* mkstemp makes the file private: give it the old file's mode, or the usual one */
 	struct stat st;
-	mode_t mask = umask(0);
-	umask(mask);
+	mode_t mask = process_umask();
 	mode_t mode = stat(path, &st) == 0 && S_ISREG(st.st_mode) ? (st.st_mode & 07777)
 								   : (0666 & ~mask);
 	if (fchmod(a->fd, mode) != 0) {

@@ -1850,6 +1850,39 @@ bool gpu_shot_get(const struct gpu_shot *s, const char *light, const char *param
 	return false;
 }
 
+bool gpu_shot_light_param(const struct gpu_shot *s, uint32_t light, uint32_t k,
+			  struct gpu_shot_param *out)
+{
+	if (light >= s->nlights || !s->lights[light].name)
+		return false;
+	const struct light *L = &s->lights[light];
+	const struct sl_program *lp = s->lshaders[L->shader].prog;
+	uint32_t at = 0, seen = 0;
+	for (uint32_t i = 0; i < lp->nparams; i++) {
+		const struct sl_reg *g = &lp->regs[lp->params[i].reg];
+		if (g->type == SL_TYPE_STRING)
+			continue;
+		uint32_t ne = g->arraylen > 0 ? (uint32_t)g->arraylen : 1;
+		uint32_t tot = ne * (uint32_t)sl_reg_ncomp(g);
+		if (g->arraylen == 0 && tot <= 16 && at + tot <= L->cur.nv && seen++ == k) {
+			static const char *const names[] = {
+				[SL_TYPE_FLOAT] = "float", [SL_TYPE_COLOR] = "color",
+				[SL_TYPE_POINT] = "point", [SL_TYPE_VECTOR] = "vector",
+				[SL_TYPE_NORMAL] = "normal", [SL_TYPE_MATRIX] = "matrix",
+			};
+			out->name = lp->params[i].name;
+			out->type = (size_t)g->type < sizeof(names) / sizeof(names[0]) &&
+					    names[g->type] ? names[g->type] : "float";
+			out->n = tot;
+			memcpy(out->value, L->cur.v + at, tot * sizeof(float));
+			shot_meta_param_range(out->name, &out->min, &out->max);
+			return true;
+		}
+		at += tot;
+	}
+	return false;
+}
+
 bool gpu_shot_mute(struct gpu_shot *s, const char *light, bool muted, char *err, size_t errlen)
 {
 	struct light *L = find(s, light, err, errlen);

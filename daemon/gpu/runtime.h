@@ -97,6 +97,22 @@ bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
 bool gpu_shot_get(const struct gpu_shot *s, const char *light, const char *param, float out[16],
 		  uint32_t *n);
 
+/** A light parameter as a client shows it. */
+struct gpu_shot_param {
+	const char *name;
+	const char *type;          /* "float", "color", "point", "vector", "normal", "matrix" */
+	uint32_t n;                /* values: 1, 3 or 16 */
+	float value[16];           /* current value */
+	float min, max;            /* the range edits must keep to (shot_meta_param_range) */
+};
+
+/**
+ * Parameter @k of light @light (index) among those an edit can set (strings
+ * and arrays are left out): false when @k is past the last one.
+ */
+bool gpu_shot_light_param(const struct gpu_shot *s, uint32_t light, uint32_t k,
+			  struct gpu_shot_param *out);
+
 /** Mute or unmute a light (a muted light contributes nothing). */
 bool gpu_shot_mute(struct gpu_shot *s, const char *light, bool muted, char *err, size_t errlen);
 

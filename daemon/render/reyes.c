@@ -1220,6 +1220,8 @@ static void run_threads(struct render *r, void *(*fn)(void *))
 
 static void progress(const struct render *r, uint32_t done, uint32_t total, double t0)
 {
+	if (r->o->progress_fn)
+		r->o->progress_fn(r->o->progress_user, total ? (double)done / total : 1.0);
 	if (!r->o->progress)
 		return;
 	int width = 40;

@@ -56,6 +56,11 @@ struct reyes_render_opts {
 	uint32_t crop_x0, crop_x1, crop_y0, crop_y1;
 	/* Bake instead of rendering (no display is written). NULL: render. */
 	const struct reyes_bake_hooks *bake;
+	/* Called on the calling thread after each row of buckets with the
+	 * fraction of rows done, whether or not there is a progress bar (NULL:
+	 * not called). */
+	void (*progress_fn)(void *user, double fraction);
+	void *progress_user;
 };
 
 /** What a render did, for the summary line and the benchmark. */

@@ -1,0 +1,796 @@
+/*
+ * relightd's render worker: the one thread that holds the GPU context, the
+ * shots in GPU memory and their light caches. It takes the jobs the service
+ * thread queues per shot (open, edits, snapshots), applies them in order,
+ * and refines the newest edit of each shot level by level, cutting each
+ * level into tiles for every client that shows the shot. A new edit
+ * preempts refinement: jobs are always taken before the next level is
+ * rendered, so a level of a superseded edit is never started.
+ *
+ * Shots stay resident within --gpu-budget and --max-shots, the least
+ * recently used evicted first; an evicted shot keeps its log of edits and
+ * is loaded again, edits replayed, when a client next needs it.
+ */
+#include "srv.h"
+
+#include "log.h"
+#include "runtime.h"
+#include "shotfile.h"
+#include "texture.h"
+
+#include <cjson/cJSON.h>
+#include <errno.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+/* ---- jobs ---- */
+
+static char *dup_str(const char *s)
+{
+	return s ? strdup(s) : NULL;
+}
+
+struct srv_job *srv_job_from(const struct proto_request *r, uint64_t client, double t0)
+{
+	struct srv_job *j = calloc(1, sizeof(*j));
+	if (!j)
+		return NULL;
+	j->op = r->op;
+	j->client = client;
+	j->has_id = r->has_id;
+	j->id = r->id;
+	j->t0 = t0;
+	j->on = r->on;
+	j->format = r->format;
+	j->light = dup_str(r->light);
+	j->shader = dup_str(r->shader);
+	bool ok = (!r->light || j->light) && (!r->shader || j->shader);
+	if (ok && r->nparams) {
+		j->params = calloc(r->nparams, sizeof(*j->params));
+		ok = j->params != NULL;
+		for (uint32_t k = 0; ok && k < r->nparams; k++) {
+			j->params[k] = r->params[k];
+			j->params[k].name = strdup(r->params[k].name);
+			ok = j->params[k].name != NULL;
+			j->nparams = k + 1;
+		}
+	}
+	if (!ok) {
+		srv_job_free(j);
+		return NULL;
+	}
+	return j;
+}
+
+void srv_job_free(struct srv_job *j)
+{
+	if (!j)
+		return;
+	free(j->light);
+	free(j->shader);
+	for (uint32_t k = 0; k < j->nparams; k++)
+		free((char *)j->params[k].name);
+	free(j->params);
+	free(j);
+}
+
+struct srv_shot *srv_shot_get(struct srv *s, const char *name)
+{
+	for (struct srv_shot *sh = s->shots; sh; sh = sh->next)
+		if (!strcmp(sh->name, name))
+			return sh;
+	struct srv_shot *sh = calloc(1, sizeof(*sh));
+	if (!sh)
+		return NULL;
+	snprintf(sh->name, sizeof(sh->name), "%s", name);
+	sh->jobs_tail = &sh->jobs;
+	sh->next_level = GPU_SHOT_LEVELS;
+	sh->next = s->shots;
+	s->shots = sh;
+	return sh;
+}
+
+void srv_submit(struct srv *s, struct srv_shot *shot, struct srv_job *j)
+{
+	j->next = NULL;
+	*shot->jobs_tail = j;
+	shot->jobs_tail = &j->next;
+	pthread_cond_broadcast(&s->wake);
+}
+
+/* ---- loading and eviction (worker thread) ---- */
+
+static void shot_evict(struct srv *s, struct srv_shot *sh)
+{
+	if (!sh->gpu)
+		return;
+	rl_log(RL_LOG_INFO, "shot '%s': evicted from GPU memory (%.1f MiB)", sh->name,
+	       (double)sh->bytes / (1 << 20));
+	gpu_shot_close(sh->gpu);
+	sh->gpu = NULL;
+	atomic_fetch_sub(&s->metrics.shots_resident, 1);
+	atomic_fetch_sub(&s->metrics.gpu_bytes, (int_fast64_t)sh->bytes);
+	atomic_fetch_add(&s->metrics.evictions, 1);
+	sh->bytes = 0;
+}
+
+/* Evict least recently used shots but @keep until the budget and the count hold. */
+static void make_room(struct srv *s, struct srv_shot *keep)
+{
+	for (;;) {
+		size_t bytes = 0;
+		uint32_t n = 0;
+		struct srv_shot *lru = NULL;
+		pthread_mutex_lock(&s->lock);
+		for (struct srv_shot *sh = s->shots; sh; sh = sh->next) {
+			if (!sh->gpu)
+				continue;
+			bytes += sh->bytes;
+			n++;
+			if (sh != keep && (!lru || sh->used < lru->used))
+				lru = sh;
+		}
+		pthread_mutex_unlock(&s->lock);
+		if (!lru || (bytes <= s->cfg.gpu_budget && n <= s->cfg.max_shots))
+			return;
+		shot_evict(s, lru);
+	}
+}
+
+static bool apply_job(struct srv *s, struct srv_shot *sh, const struct srv_job *j, char *err,
+		      size_t errlen, enum proto_error_code *code);
+
+/* Load @sh into GPU memory (and replay its edits): false with the reason in @err. */
+static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errlen)
+{
+	if (sh->gpu)
+		return true;
+	char *dbuf = NULL;
+	size_t dlen = 0;
+	FILE *diag = open_memstream(&dbuf, &dlen);
+	struct gpu_shot_opts o = {
+		.diag = diag ? diag : stderr,
+		.texture_path = s->cfg.shots_dir,
+		.budget = s->cfg.gpu_budget,
+	};
+	double t = srv_now();
+	sh->gpu = gpu_shot_open(s->gpu, sh->path, &o);
+	if (diag)
+		fclose(diag);
+	if (!sh->gpu) {
+		snprintf(err, errlen, "shot '%s' cannot be loaded: %s", sh->name,
+			 dbuf && *dbuf ? dbuf : "unknown reason");
+		size_t n = strlen(err);
+		while (n && (err[n - 1] == '\n' || err[n - 1] == ' '))
+			err[--n] = '\0';
+		free(dbuf);
+		sh->failed = true;
+		return false;
+	}
+	if (dbuf && *dbuf)
+		rl_log(RL_LOG_WARN, "shot '%s': %s", sh->name, dbuf);
+	free(dbuf);
+	sh->failed = false;
+	sh->bytes = gpu_shot_bytes(sh->gpu);
+	sh->width = gpu_shot_width(sh->gpu);
+	sh->height = gpu_shot_height(sh->gpu);
+	if (gpu_shot_light_count(sh->gpu) > s->cfg.max_lights) {
+		snprintf(err, errlen, "shot '%s' has %u lights, over the limit of %u", sh->name,
+			 gpu_shot_light_count(sh->gpu), s->cfg.max_lights);
+		gpu_shot_close(sh->gpu);
+		sh->gpu = NULL;
+		return false;
+	}
+	atomic_fetch_add(&s->metrics.shots_resident, 1);
+	atomic_fetch_add(&s->metrics.gpu_bytes, (int_fast64_t)sh->bytes);
+	atomic_fetch_add(&s->metrics.loads, 1);
+	/* Edits made before an eviction come back. */
+	for (size_t i = 0; i < sh->nlog; i++) {
+		char e2[256];
+		enum proto_error_code c;
+		if (!apply_job(s, sh, sh->log[i], e2, sizeof(e2), &c))
+			rl_log(RL_LOG_WARN, "shot '%s': replaying an edit failed: %s", sh->name, e2);
+	}
+	rl_log(RL_LOG_INFO, "shot '%s': loaded, %ux%u, %.1f MiB, %u lights, %.0f ms%s", sh->name,
+	       sh->width, sh->height, (double)sh->bytes / (1 << 20),
+	       gpu_shot_light_count(sh->gpu), (srv_now() - t) * 1e3,
+	       sh->nlog ? ", edits replayed" : "");
+	pthread_mutex_lock(&s->lock);
+	sh->used = ++s->clock;
+	sh->next_level = 0;
+	pthread_mutex_unlock(&s->lock);
+	make_room(s, sh);
+	return true;
+}
+
+/* ---- applying requests ---- */
+
+static bool apply_set(struct gpu_shot *g, const struct srv_job *j, char *err, size_t errlen)
+{
+	/* All or nothing: a refused parameter puts back those set before it. */
+	float old[64][16];
+	uint32_t oldn[64];
+	uint32_t n = j->nparams < 64 ? j->nparams : 64;
+	for (uint32_t k = 0; k < n; k++) {
+		if (!gpu_shot_get(g, j->light, j->params[k].name, old[k], &oldn[k]))
+			oldn[k] = 0;
+		if (!gpu_shot_set(g, j->light, j->params[k].name, j->params[k].values,
+				  j->params[k].n, err, errlen)) {
+			for (uint32_t b = 0; b < k; b++) {
+				char e2[64];
+				if (oldn[b])
+					gpu_shot_set(g, j->light, j->params[b].name, old[b], oldn[b],
+						     e2, sizeof(e2));
+			}
+			return false;
+		}
+	}
+	return true;
+}
+
+/* Which error code a refusal of the runtime's means (its messages name the cause). */
+static enum proto_error_code code_of(const char *err)
+{
+	if (strstr(err, "no light") || strstr(err, "unknown light") || strstr(err, "no such light"))
+		return PROTO_E_UNKNOWN_LIGHT;
+	if (strstr(err, "has no parameter") || strstr(err, "no parameter") ||
+	    strstr(err, "unknown parameter"))
+		return PROTO_E_UNKNOWN_PARAM;
+	if (strstr(err, "no shader") || strstr(err, "not found"))
+		return PROTO_E_UNKNOWN_PARAM;
+	return PROTO_E_RANGE;
+}
+
+static bool apply_job(struct srv *s, struct srv_shot *sh, const struct srv_job *j, char *err,
+		      size_t errlen, enum proto_error_code *code)
+{
+	struct gpu_shot *g = sh->gpu;
+	bool ok = false;
+	*code = PROTO_E_RANGE;
+	if (j->light && j->op != PROTO_ADD_LIGHT && gpu_shot_find_light(g, j->light) < 0) {
+		snprintf(err, errlen, "shot '%s' has no light '%s'", sh->name, j->light);
+		*code = PROTO_E_UNKNOWN_LIGHT;
+		return false;
+	}
+	switch (j->op) {
+	case PROTO_SET:
+		ok = apply_set(g, j, err, errlen);
+		break;
+	case PROTO_MUTE:
+		ok = gpu_shot_mute(g, j->light, j->on, err, errlen);
+		break;
+	case PROTO_SOLO:
+		ok = gpu_shot_solo(g, j->light, err, errlen);
+		break;
+	case PROTO_FREEZE:
+		ok = gpu_shot_freeze(g, j->light, j->on, err, errlen);
+		break;
+	case PROTO_REMOVE_LIGHT:
+		ok = gpu_shot_remove_light(g, j->light, err, errlen);
+		break;
+	case PROTO_ADD_LIGHT: {
+		if (gpu_shot_find_light(g, j->light) >= 0) {
+			snprintf(err, errlen, "shot '%s' has a light '%s' already", sh->name, j->light);
+			*code = PROTO_E_STATE;
+			return false;
+		}
+		uint32_t live = 0;
+		for (uint32_t i = 0; i < gpu_shot_light_count(g); i++)
+			live += gpu_shot_light_name(g, i) != NULL;
+		if (live >= s->cfg.max_lights) {
+			snprintf(err, errlen, "shot '%s' has %u lights, the limit", sh->name, live);
+			*code = PROTO_E_LIMIT;
+			return false;
+		}
+		ok = gpu_shot_add_light(g, j->light, j->shader, NULL, err, errlen) >= 0;
+		if (!ok) {
+			*code = PROTO_E_UNKNOWN_PARAM;
+			if (strstr(err, "shader"))
+				*code = PROTO_E_UNKNOWN_PARAM;
+			return false;
+		}
+		if (j->nparams && !apply_set(g, j, err, errlen)) {
+			char e2[64];
+			gpu_shot_remove_light(g, j->light, e2, sizeof(e2));
+			*code = code_of(err);
+			return false;
+		}
+		return true;
+	}
+	default:
+		snprintf(err, errlen, "'%s' is not an edit", proto_op_name(j->op));
+		*code = PROTO_E_INTERNAL;
+		return false;
+	}
+	if (!ok)
+		*code = code_of(err);
+	return ok;
+}
+
+/* ---- replies ---- */
+
+static cJSON *opened_json(const struct srv_shot *sh, const struct srv_job *j)
+{
+	struct gpu_shot *g = sh->gpu;
+	cJSON *o = cJSON_CreateObject();
+	cJSON_AddStringToObject(o, "op", "opened");
+	if (j->has_id)
+		cJSON_AddNumberToObject(o, "id", (double)j->id);
+	cJSON_AddStringToObject(o, "shot", sh->name);
+	cJSON_AddNumberToObject(o, "width", gpu_shot_width(g));
+	cJSON_AddNumberToObject(o, "height", gpu_shot_height(g));
+	cJSON_AddNumberToObject(o, "levels", GPU_SHOT_LEVELS);
+	cJSON_AddNumberToObject(o, "edit", sh->edit);
+	cJSON_AddNumberToObject(o, "samples", (double)gpu_shot_samples(g));
+	cJSON *lights = cJSON_AddArrayToObject(o, "lights");
+	for (uint32_t i = 0; i < gpu_shot_light_count(g); i++) {
+		if (!gpu_shot_light_name(g, i))
+			continue;
+		cJSON *l = cJSON_CreateObject();
+		cJSON_AddStringToObject(l, "name", gpu_shot_light_name(g, i));
+		cJSON_AddStringToObject(l, "shader", gpu_shot_light_shader(g, i));
+		cJSON *ps = cJSON_AddArrayToObject(l, "params");
+		struct gpu_shot_param p;
+		for (uint32_t k = 0; gpu_shot_light_param(g, i, k, &p); k++) {
+			cJSON *pj = cJSON_CreateObject();
+			cJSON_AddStringToObject(pj, "name", p.name);
+			cJSON_AddStringToObject(pj, "type", p.type);
+			if (p.n == 1)
+				cJSON_AddNumberToObject(pj, "value", p.value[0]);
+			else {
+				cJSON *v = cJSON_AddArrayToObject(pj, "value");
+				for (uint32_t c = 0; c < p.n; c++)
+					cJSON_AddItemToArray(v, cJSON_CreateNumber(p.value[c]));
+			}
+			cJSON_AddNumberToObject(pj, "min", p.min);
+			cJSON_AddNumberToObject(pj, "max", p.max);
+			cJSON_AddItemToArray(ps, pj);
+		}
+		cJSON_AddItemToArray(lights, l);
+	}
+	return o;
+}
+
+static void reply_simple(struct srv *s, uint64_t client, const char *op, const struct srv_job *j,
+			 int64_t edit)
+{
+	cJSON *o = cJSON_CreateObject();
+	cJSON_AddStringToObject(o, "op", op);
+	if (j->has_id)
+		cJSON_AddNumberToObject(o, "id", (double)j->id);
+	if (edit >= 0)
+		cJSON_AddNumberToObject(o, "edit", (double)edit);
+	pthread_mutex_lock(&s->lock);
+	struct srv_client *c = srv_client_find(s, client);
+	if (c)
+		srv_send_json(s, c, o);
+	pthread_mutex_unlock(&s->lock);
+	cJSON_Delete(o);
+}
+
+static void reply_error(struct srv *s, const struct srv_job *j, enum proto_error_code code,
+			const char *msg)
+{
+	pthread_mutex_lock(&s->lock);
+	struct srv_client *c = srv_client_find(s, j->client);
+	if (c)
+		srv_send_error(s, c, j->has_id, j->id, code, "%s", msg);
+	pthread_mutex_unlock(&s->lock);
+}
+
+/* ---- images to tiles ---- */
+
+struct images {
+	uint32_t w, h;
+	uint32_t *px8;       /* w * h, RGBA8 */
+	uint16_t *px16;      /* w * h * 4 halves */
+	size_t cap;          /* pixels both can hold */
+};
+
+static bool images_fit(struct images *im, uint32_t w, uint32_t h)
+{
+	size_t n = (size_t)w * h;
+	im->w = w;
+	im->h = h;
+	if (n <= im->cap)
+		return true;
+	free(im->px8);
+	free(im->px16);
+	im->px8 = malloc(n * sizeof(uint32_t));
+	im->px16 = malloc(n * 4 * sizeof(uint16_t));
+	im->cap = im->px8 && im->px16 ? n : 0;
+	return im->cap != 0;
+}
+
+/* The tiles of level @level of @im in @format, in the queue order: row by row. */
+static struct srv_frame **make_tiles(const struct images *im, enum proto_format format,
+				     uint32_t edit, uint32_t level, uint32_t ts, size_t *count)
+{
+	uint32_t nx = (im->w + ts - 1) / ts, ny = (im->h + ts - 1) / ts;
+	struct srv_frame **v = calloc((size_t)nx * ny, sizeof(*v));
+	if (!v)
+		return NULL;
+	size_t bpp = format == PROTO_RGBA8 ? 4 : 8, n = 0;
+	for (uint32_t ty = 0; ty < ny; ty++) {
+		for (uint32_t tx = 0; tx < nx; tx++) {
+			struct proto_tile t = {
+				.edit = edit, .level = level, .format = format,
+				.x = tx * ts, .y = ty * ts,
+			};
+			t.width = im->w - t.x < ts ? im->w - t.x : ts;
+			t.height = im->h - t.y < ts ? im->h - t.y : ts;
+			size_t row = t.width * bpp;
+			struct srv_frame *f =
+				srv_frame_new(PROTO_TILE_HEADER_BYTES + row * t.height, true);
+			if (!f)
+				continue;
+			f->edit = edit;
+			f->level = level;
+			f->x = t.x;
+			f->y = t.y;
+			unsigned char *p = srv_frame_payload(f);
+			proto_tile_header(&t, p);
+			p += PROTO_TILE_HEADER_BYTES;
+			for (uint32_t y = 0; y < t.height; y++) {
+				size_t at = ((size_t)(t.y + y) * im->w + t.x);
+				const void *src = format == PROTO_RGBA8 ? (const void *)(im->px8 + at)
+									: (const void *)(im->px16 + at * 4);
+				memcpy(p + y * row, src, row);
+			}
+			v[n++] = f;
+		}
+	}
+	*count = n;
+	return v;
+}
+
+/* Read level @level of @sh in the formats asked for. */
+static bool read_level(struct gpu_shot *g, int level, struct images *im, bool need8, bool need16)
+{
+	if (!images_fit(im, gpu_shot_width(g), gpu_shot_height(g)))
+		return false;
+	if (need8 && !gpu_shot_read_srgb8(g, level, im->px8))
+		return false;
+	if (need16 && !gpu_shot_read_half(g, level, im->px16))
+		return false;
+	return true;
+}
+
+/*
+ * Send level @level of edit @edit (read into @im) to the clients that show
+ * @sh, or to client @only alone when it is not 0. Lock held.
+ */
+static void send_level(struct srv *s, struct srv_shot *sh, const struct images *im,
+		       bool need8, bool need16, uint32_t edit, int level, double ms, double t0,
+		       uint64_t only)
+{
+	struct srv_frame **tiles[3] = { NULL };
+	size_t count[3] = { 0 };
+	uint32_t ts = s->cfg.tile_size;
+	if (need8)
+		tiles[PROTO_RGBA8] = make_tiles(im, PROTO_RGBA8, edit, (uint32_t)level, ts,
+						&count[PROTO_RGBA8]);
+	if (need16)
+		tiles[PROTO_RGBA16F] = make_tiles(im, PROTO_RGBA16F, edit, (uint32_t)level, ts,
+						  &count[PROTO_RGBA16F]);
+	for (int f = 1; f <= 2; f++)
+		if (t0 > 0 && count[f])
+			tiles[f][0]->t0 = t0;
+	char msg[160];
+	int n = snprintf(msg, sizeof(msg), "{\"op\":\"level\",\"shot\":\"%s\",\"edit\":%u,\"level\":%d,\"ms\":%.3f}",
+			 sh->name, edit, level, ms);
+	struct srv_frame *lv = srv_frame_text(msg, (size_t)n);
+	for (struct srv_client *c = s->clients; c; c = c->next) {
+		if (c->shot != sh || (only && c->id != only))
+			continue;
+		for (size_t i = 0; i < count[c->format]; i++)
+			srv_send(s, c, tiles[c->format][i]);
+		if (lv)
+			srv_send(s, c, lv);
+	}
+	for (int f = 1; f <= 2; f++) {
+		for (size_t i = 0; i < count[f]; i++)
+			srv_frame_unref(tiles[f][i]);
+		free(tiles[f]);
+	}
+	srv_frame_unref(lv);
+	srv_kick(s);
+}
+
+/* Which formats the clients showing @sh need (lock held). */
+static bool formats(struct srv *s, struct srv_shot *sh, bool *need8, bool *need16)
+{
+	*need8 = *need16 = false;
+	for (struct srv_client *c = s->clients; c; c = c->next) {
+		if (c->shot != sh)
+			continue;
+		*need8 |= c->format == PROTO_RGBA8;
+		*need16 |= c->format == PROTO_RGBA16F;
+	}
+	return *need8 || *need16;
+}
+
+/* ---- jobs (worker thread, lock not held) ---- */
+
+static void write_snapshot(struct srv *s, struct srv_shot *sh, const struct srv_job *j,
+			   struct images *im)
+{
+	struct gpu_shot_stats st;
+	char path[4096 + 256], err[256] = "";
+	bool ok = gpu_shot_render(sh->gpu, GPU_SHOT_FINAL, &st) &&
+		  read_level(sh->gpu, GPU_SHOT_FINAL, im, false, true);
+	if (ok && mkdir(s->cfg.snapshot_dir, 0755) && errno != EEXIST) {
+		snprintf(err, sizeof(err), "cannot make the snapshot folder: %s", strerror(errno));
+		ok = false;
+	}
+	float *f = ok ? malloc((size_t)im->w * im->h * 4 * sizeof(float)) : NULL;
+	if (ok && !f)
+		ok = false;
+	if (ok) {
+		for (size_t i = 0; i < (size_t)im->w * im->h * 4; i++)
+			f[i] = shot_half_value(im->px16[i]);
+		struct timespec ts;
+		clock_gettime(CLOCK_REALTIME, &ts);
+		snprintf(path, sizeof(path), "%s/%s-edit%u-%lld%03ld.exr", s->cfg.snapshot_dir,
+			 sh->name, sh->edit, (long long)ts.tv_sec, ts.tv_nsec / 1000000);
+		static const char *const names[4] = { "R", "G", "B", "A" };
+		struct reyes_image ri = { .width = im->w, .height = im->h, .nchannels = 4,
+					  .channel_names = (const char **)names, .data = f };
+		char *dbuf = NULL;
+		size_t dlen = 0;
+		FILE *diag = open_memstream(&dbuf, &dlen);
+		ok = reyes_image_write_exr(path, &ri, true, diag ? diag : stderr);
+		if (diag)
+			fclose(diag);
+		if (!ok)
+			snprintf(err, sizeof(err), "%s", dbuf ? dbuf : "the EXR was not written");
+		free(dbuf);
+	}
+	free(f);
+	if (!ok) {
+		reply_error(s, j, PROTO_E_INTERNAL, *err ? err : "the snapshot failed");
+		return;
+	}
+	cJSON *o = cJSON_CreateObject();
+	cJSON_AddStringToObject(o, "op", "snapshot");
+	if (j->has_id)
+		cJSON_AddNumberToObject(o, "id", (double)j->id);
+	cJSON_AddStringToObject(o, "path", path);
+	cJSON_AddNumberToObject(o, "edit", sh->edit);
+	pthread_mutex_lock(&s->lock);
+	struct srv_client *c = srv_client_find(s, j->client);
+	if (c)
+		srv_send_json(s, c, o);
+	pthread_mutex_unlock(&s->lock);
+	cJSON_Delete(o);
+}
+
+static void do_open(struct srv *s, struct srv_shot *sh, const struct srv_job *j, struct images *im)
+{
+	cJSON *o = opened_json(sh, j);
+	/* The current state: its final level when refinement is done (the
+	 * refinement under way reaches the client otherwise). */
+	pthread_mutex_lock(&s->lock);
+	bool done = sh->next_level >= GPU_SHOT_LEVELS;
+	uint32_t edit = sh->edit;
+	pthread_mutex_unlock(&s->lock);
+	bool need8 = j->format == PROTO_RGBA8, need16 = !need8;
+	struct gpu_shot_stats st = { 0 };
+	bool have = done && gpu_shot_render(sh->gpu, GPU_SHOT_FINAL, &st) &&
+		    read_level(sh->gpu, GPU_SHOT_FINAL, im, need8, need16);
+	pthread_mutex_lock(&s->lock);
+	struct srv_client *c = srv_client_find(s, j->client);
+	if (c) {
+		c->shot = sh;
+		c->format = j->format;
+		srv_send_json(s, c, o);
+		if (have && sh->edit == edit)
+			send_level(s, sh, im, need8, need16, edit, GPU_SHOT_FINAL, st.ms, 0, c->id);
+	}
+	sh->used = ++s->clock;
+	pthread_mutex_unlock(&s->lock);
+	cJSON_Delete(o);
+}
+
+static void do_job(struct srv *s, struct srv_shot *sh, struct srv_job *j, struct images *im)
+{
+	char err[1024];
+	if (!sh->gpu) {
+		make_room(s, NULL);
+		if (!shot_load(s, sh, err, sizeof(err))) {
+			rl_log(RL_LOG_ERROR, "%s", err);
+			reply_error(s, j, PROTO_E_INTERNAL, err);
+			srv_job_free(j);
+			return;
+		}
+	}
+	switch (j->op) {
+	case PROTO_OPEN:
+		do_open(s, sh, j, im);
+		srv_job_free(j);
+		return;
+	case PROTO_SNAPSHOT:
+		write_snapshot(s, sh, j, im);
+		srv_job_free(j);
+		return;
+	default:
+		break;
+	}
+	enum proto_error_code code;
+	if (!apply_job(s, sh, j, err, sizeof(err), &code)) {
+		reply_error(s, j, code, err);
+		srv_job_free(j);
+		return;
+	}
+	pthread_mutex_lock(&s->lock);
+	bool refine = j->op != PROTO_FREEZE;
+	if (refine) {
+		sh->edit++;
+		sh->next_level = 0;
+		sh->edit_t0 = j->t0;
+		atomic_fetch_add(&s->metrics.edits, 1);
+	}
+	struct srv_client *c = srv_client_find(s, j->client);
+	if (c)
+		c->edits += refine;
+	sh->used = ++s->clock;
+	uint32_t edit = sh->edit;
+	pthread_mutex_unlock(&s->lock);
+	reply_simple(s, j->client, "ack", j, edit);
+	/* Kept for a reload after an eviction. */
+	if (sh->nlog == sh->caplog) {
+		size_t cap = sh->caplog ? sh->caplog * 2 : 16;
+		struct srv_job **v = realloc(sh->log, cap * sizeof(*v));
+		if (!v) {
+			srv_job_free(j);
+			return;
+		}
+		sh->log = v;
+		sh->caplog = cap;
+	}
+	j->client = 0;
+	sh->log[sh->nlog++] = j;
+}
+
+/* ---- the loop ---- */
+
+static void *worker_main(void *arg)
+{
+	struct srv *s = arg;
+	char err[512];
+	struct gpu_ctx *ctx = gpu_create(err, sizeof(err));
+	pthread_mutex_lock(&s->lock);
+	if (!ctx) {
+		snprintf(s->gpu_err, sizeof(s->gpu_err), "%s", err);
+		s->gpu_failed = true;
+		pthread_cond_broadcast(&s->wake);
+		pthread_mutex_unlock(&s->lock);
+		return NULL;
+	}
+	s->gpu = ctx;
+	snprintf(s->gpu_renderer, sizeof(s->gpu_renderer), "%s", gpu_renderer(ctx));
+	s->gpu_ready = true;
+	pthread_cond_broadcast(&s->wake);
+
+	struct images im = { 0 };
+	struct srv_shot *cursor = NULL;
+	while (!s->stop) {
+		/* Jobs first, round robin over the shots: edits preempt refinement. */
+		struct srv_shot *sh = NULL;
+		for (int pass = 0; pass < 2 && !sh; pass++)
+			for (struct srv_shot *x = pass ? s->shots : (cursor ? cursor->next : NULL); x;
+			     x = x->next)
+				if (x->jobs && !x->baking) {
+					sh = x;
+					break;
+				}
+		if (sh) {
+			cursor = sh;
+			struct srv_job *j = sh->jobs;
+			sh->jobs = j->next;
+			if (!sh->jobs)
+				sh->jobs_tail = &sh->jobs;
+			pthread_mutex_unlock(&s->lock);
+			do_job(s, sh, j, &im);
+			pthread_mutex_lock(&s->lock);
+			continue;
+		}
+		/* Then the next level of the shot whose edit is oldest. */
+		bool need8 = false, need16 = false;
+		for (struct srv_shot *x = s->shots; x; x = x->next) {
+			bool n8, n16;
+			if (!x->gpu || x->next_level >= GPU_SHOT_LEVELS || !formats(s, x, &n8, &n16))
+				continue;
+			if (!sh || x->used < sh->used) {
+				sh = x;
+				need8 = n8;
+				need16 = n16;
+			}
+		}
+		if (!sh) {
+			pthread_cond_wait(&s->wake, &s->lock);
+			continue;
+		}
+		int level = sh->next_level;
+		uint32_t edit = sh->edit;
+		double t0 = level == 0 ? sh->edit_t0 : 0;
+		pthread_mutex_unlock(&s->lock);
+
+		struct gpu_shot_stats st = { 0 };
+		bool ok = gpu_shot_render(sh->gpu, level, &st) &&
+			  read_level(sh->gpu, level, &im, need8, need16);
+		pthread_mutex_lock(&s->lock);
+		if (!ok) {
+			rl_log(RL_LOG_ERROR, "shot '%s': level %d failed", sh->name, level);
+			sh->next_level = GPU_SHOT_LEVELS;
+			continue;
+		}
+		atomic_fetch_add(&s->metrics.levels, 1);
+		if (sh->jobs && level + 1 < GPU_SHOT_LEVELS)
+			atomic_fetch_add(&s->metrics.preempted, 1);
+		if (sh->edit == edit && sh->next_level == level) {
+			send_level(s, sh, &im, need8, need16, edit, level, st.ms, t0, 0);
+			sh->next_level = level + 1;
+			if (level == 0)
+				sh->edit_t0 = 0;
+		}
+	}
+	pthread_mutex_unlock(&s->lock);
+
+	for (struct srv_shot *sh = s->shots; sh; sh = sh->next)
+		shot_evict(s, sh);
+	free(im.px8);
+	free(im.px16);
+	gpu_destroy(ctx);
+	s->gpu = NULL;
+	return NULL;
+}
+
+bool srv_worker_start(struct srv *s)
+{
+	pthread_mutex_lock(&s->lock);
+	if (pthread_create(&s->worker, NULL, worker_main, s)) {
+		snprintf(s->gpu_err, sizeof(s->gpu_err), "cannot start the render thread");
+		pthread_mutex_unlock(&s->lock);
+		return false;
+	}
+	s->worker_running = true;
+	while (!s->gpu_ready && !s->gpu_failed)
+		pthread_cond_wait(&s->wake, &s->lock);
+	bool ok = s->gpu_ready;
+	pthread_mutex_unlock(&s->lock);
+	if (!ok) {
+		pthread_join(s->worker, NULL);
+		s->worker_running = false;
+	}
+	return ok;
+}
+
+void srv_worker_stop(struct srv *s)
+{
+	if (s->worker_running) {
+		pthread_mutex_lock(&s->lock);
+		s->stop = true;
+		pthread_cond_broadcast(&s->wake);
+		pthread_mutex_unlock(&s->lock);
+		pthread_join(s->worker, NULL);
+		s->worker_running = false;
+	}
+	while (s->shots) {
+		struct srv_shot *sh = s->shots;
+		s->shots = sh->next;
+		while (sh->jobs) {
+			struct srv_job *j = sh->jobs;
+			sh->jobs = j->next;
+			srv_job_free(j);
+		}
+		for (size_t i = 0; i < sh->nlog; i++)
+			srv_job_free(sh->log[i]);
+		free(sh->log);
+		free(sh);
+	}
+}
