@@ -227,6 +227,67 @@ static bool parse_body(const cJSON *o, const struct proto_limits *lim, struct pr
 	return set_error(e, PROTO_E_INTERNAL, "unhandled op");
 }
 
+/*
+ * Is @s (@n bytes) UTF-8 as RFC 3629 has it (no overlong forms, no
+ * surrogates, nothing past U+10FFFF) with no NUL byte? A WebSocket text frame
+ * must be, and what the daemon echoes in its messages must be too.
+ */
+static bool valid_utf8(const unsigned char *s, size_t n)
+{
+	size_t i = 0;
+	while (i < n) {
+		unsigned char c = s[i];
+		if (c == 0)
+			return false;
+		if (c < 0x80) {
+			i++;
+			continue;
+		}
+		size_t len;
+		uint32_t cp, min;
+		if ((c & 0xe0) == 0xc0) {
+			len = 2, cp = c & 0x1f, min = 0x80;
+		} else if ((c & 0xf0) == 0xe0) {
+			len = 3, cp = c & 0x0f, min = 0x800;
+		} else if ((c & 0xf8) == 0xf0) {
+			len = 4, cp = c & 0x07, min = 0x10000;
+		} else {
+			return false;
+		}
+		if (n - i < len)
+			return false;
+		for (size_t k = 1; k < len; k++) {
+			if ((s[i + k] & 0xc0) != 0x80)
+				return false;
+			cp = (cp << 6) | (s[i + k] & 0x3f);
+		}
+		if (cp < min || cp > 0x10ffff || (cp >= 0xd800 && cp <= 0xdfff))
+			return false;
+		i += len;
+	}
+	return true;
+}
+
+/* Does a string of the JSON text @s hold the escape \u0000 (a NUL that C strings would cut at)? */
+static bool escaped_nul(const char *s, size_t n)
+{
+	bool in = false;
+	for (size_t i = 0; i < n; i++) {
+		if (!in) {
+			in = s[i] == '"';
+			continue;
+		}
+		if (s[i] == '"') {
+			in = false;
+		} else if (s[i] == '\\' && i + 1 < n) {
+			if (s[i + 1] == 'u' && i + 5 < n && !memcmp(s + i + 2, "0000", 4))
+				return true;
+			i++;
+		}
+	}
+	return false;
+}
+
 bool proto_parse_request(const char *text, size_t len, const struct proto_limits *lim,
 			 struct proto_request *out, struct proto_error *err)
 {
@@ -239,13 +300,19 @@ bool proto_parse_request(const char *text, size_t len, const struct proto_limits
 	}
 	if (!text)
 		return set_error(err, PROTO_E_MALFORMED, "empty message");
-	cJSON *o = cJSON_ParseWithLength(text, len);
+	const char *end = NULL;
+	cJSON *o = cJSON_ParseWithLengthOpts(text, len, &end, false);
 	if (!o)
 		return set_error(err, PROTO_E_MALFORMED, "not JSON");
 	out->priv = o;
+	while (end && end < text + len && (*end == ' ' || *end == '\t' || *end == '\r' || *end == '\n'))
+		end++;
 	bool ok = true;
 	if (!cJSON_IsObject(o))
 		ok = set_error(err, PROTO_E_MALFORMED, "a request is a JSON object");
+	/* Checked after the parse so that the reply can carry the request's id. */
+	bool text_ok = valid_utf8((const unsigned char *)text, len) && !escaped_nul(text, len) &&
+		       !(end && end < text + len);
 	const cJSON *id = ok ? cJSON_GetObjectItemCaseSensitive(o, "id") : NULL;
 	if (id) {
 		if (!cJSON_IsNumber(id) || id->valuedouble != floor(id->valuedouble) ||
@@ -256,6 +323,9 @@ bool proto_parse_request(const char *text, size_t len, const struct proto_limits
 			out->id = err->id = (int64_t)id->valuedouble;
 		}
 	}
+	if (ok && !text_ok)
+		ok = set_error(err, PROTO_E_MALFORMED, "not one JSON object of UTF-8 text (no NUL, "
+			       "nothing after it)");
 	const cJSON *op = ok ? cJSON_GetObjectItemCaseSensitive(o, "op") : NULL;
 	if (ok && (!cJSON_IsString(op) || !op->valuestring))
 		ok = set_error(err, PROTO_E_MALFORMED, "a request needs 'op', a string");

@@ -1367,15 +1367,18 @@ static bool load_framebuffer(struct gpu_shot *s, const struct shot_file *f, cons
 /*
  * Run every program once on one sample, so that the driver's just-in-time
  * compilation (llvmpipe compiles at first use) happens at load, not on the
- * first edit; then clear what that wrote.
+ * first edit; then clear what that wrote. With @only >= 0, only the kernels
+ * of light shader @only (one just added).
  */
-static bool warm_up(struct gpu_shot *s)
+static bool warm_up(struct gpu_shot *s, int only)
 {
 	for (uint32_t si = 0; si < s->nsurfaces; si++) {
 		struct surface *sf = &s->surfaces[si];
 		if (!sf->nrows)
 			continue;
 		for (uint32_t k = 0; k <= s->nlshaders; k++) {
+			if (only >= 0 && k != (uint32_t)only)
+				continue;
 			struct kernel *kk = k < s->nlshaders ? &sf->lk[k] : &sf->base;
 			struct gpu_binding b[2 + 64];
 			uint32_t nb = 0;
@@ -1388,6 +1391,11 @@ static bool warm_up(struct gpu_shot *s)
 				return fail(s, "running the programs of '%s' failed", sf->name);
 		}
 	}
+	/* A light shader added to a loaded shot: its kernels alone are new. The
+	 * runtime's own programs below write the light cache and the colours,
+	 * which hold the shot's state by now. */
+	if (only >= 0)
+		return gpu_finish(s->ctx);
 	struct gpu_program *acc[2] = { s->accumulate, s->accumulate_d };
 	struct gpu_buffer *dst[2] = { s->colors, s->cache };
 	for (int i = 0; i < 2; i++) {
@@ -1604,7 +1612,7 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	for (int b = 0; b < NBANDS; b++)
 		s->cached[b] = rl_xcalloc(s->nlights + 1, sizeof(struct lstate));
 	ok = ok && build_graph(s);
-	ok = ok && warm_up(s);
+	ok = ok && warm_up(s, -1);
 	for (uint32_t i = 0; ok && i < s->nsurfaces; i++)
 		check_linear(s, &s->surfaces[i]);
 	shot_free(f);
@@ -1857,14 +1865,21 @@ bool gpu_shot_light_param(const struct gpu_shot *s, uint32_t light, uint32_t k,
 		return false;
 	const struct light *L = &s->lights[light];
 	const struct sl_program *lp = s->lshaders[L->shader].prog;
+	/* The values as edits give them, in the light's shader space: its
+	 * parameters evaluated with that space as the current one. */
+	static const float identity[16] = { 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 };
+	struct lstate own = { 0 };
+	if (!eval_params(L->init, lp, identity, identity, &own))
+		return false;
 	uint32_t at = 0, seen = 0;
-	for (uint32_t i = 0; i < lp->nparams; i++) {
+	bool found = false;
+	for (uint32_t i = 0; i < lp->nparams && !found; i++) {
 		const struct sl_reg *g = &lp->regs[lp->params[i].reg];
 		if (g->type == SL_TYPE_STRING)
 			continue;
 		uint32_t ne = g->arraylen > 0 ? (uint32_t)g->arraylen : 1;
 		uint32_t tot = ne * (uint32_t)sl_reg_ncomp(g);
-		if (g->arraylen == 0 && tot <= 16 && at + tot <= L->cur.nv && seen++ == k) {
+		if (g->arraylen == 0 && tot <= 16 && at + tot <= own.nv && seen++ == k) {
 			static const char *const names[] = {
 				[SL_TYPE_FLOAT] = "float", [SL_TYPE_COLOR] = "color",
 				[SL_TYPE_POINT] = "point", [SL_TYPE_VECTOR] = "vector",
@@ -1874,13 +1889,14 @@ bool gpu_shot_light_param(const struct gpu_shot *s, uint32_t light, uint32_t k,
 			out->type = (size_t)g->type < sizeof(names) / sizeof(names[0]) &&
 					    names[g->type] ? names[g->type] : "float";
 			out->n = tot;
-			memcpy(out->value, L->cur.v + at, tot * sizeof(float));
+			memcpy(out->value, own.v + at, tot * sizeof(float));
 			shot_meta_param_range(out->name, &out->min, &out->max);
-			return true;
+			found = true;
 		}
 		at += tot;
 	}
-	return false;
+	lstate_free(&own);
+	return found;
 }
 
 bool gpu_shot_mute(struct gpu_shot *s, const char *light, bool muted, char *err, size_t errlen)
@@ -2500,7 +2516,7 @@ int gpu_shot_add_light(struct gpu_shot *s, const char *name, const char *shader,
 	}
 	/* a new light is being edited: not in the cache */
 	editing(s, L);
-	if (!warm_up(s))
+	if (!warm_up(s, k))
 		errorf(err, errlen, "running the programs of light '%s' failed", name);
 	return (int)(s->nlights - 1);
 }

@@ -102,7 +102,7 @@ struct gpu_shot_param {
 	const char *name;
 	const char *type;          /* "float", "color", "point", "vector", "normal", "matrix" */
 	uint32_t n;                /* values: 1, 3 or 16 */
-	float value[16];           /* current value */
+	float value[16];           /* current value, in the light's shader space (as edits take it) */
 	float min, max;            /* the range edits must keep to (shot_meta_param_range) */
 };
 

@@ -401,6 +401,11 @@ static void handle_text(struct srv *s, struct srv_client *c, const char *text, s
 		}
 		c->errors++;
 		atomic_fetch_add(&s->metrics.errors, 1);
+		/* Nothing but a good hello from a client that has no token yet. */
+		if (!c->hello && s->tokens) {
+			c->cut_off = true;
+			atomic_fetch_add(&s->metrics.refused, 1);
+		}
 		pthread_mutex_unlock(&s->lock);
 		free(t);
 		return;
@@ -411,6 +416,7 @@ static void handle_text(struct srv *s, struct srv_client *c, const char *text, s
 			pthread_mutex_lock(&s->lock);
 			c->cut_off = true;
 			pthread_mutex_unlock(&s->lock);
+			atomic_fetch_add(&s->metrics.refused, 1);
 		}
 		goto out;
 	}
@@ -616,6 +622,14 @@ static int on_writeable(struct srv *s, struct srv_client *c, struct lws *wsi)
 		lws_close_reason(wsi, LWS_CLOSE_STATUS_POLICY_VIOLATION, NULL, 0);
 		return -1;
 	}
+	if (g_signal && !c->q.len) {
+		/* Stopping, and everything queued went out: say goodbye. */
+		pthread_mutex_unlock(&s->lock);
+		static const char reason[] = "relightd is stopping";
+		lws_close_reason(wsi, LWS_CLOSE_STATUS_GOINGAWAY, (unsigned char *)reason,
+				 sizeof(reason) - 1);
+		return -1;
+	}
 	struct srv_frame *f = sendq_pop(&c->q);
 	bool more = c->q.len > 0;
 	if (f && f->binary) {
@@ -638,7 +652,7 @@ static int on_writeable(struct srv *s, struct srv_client *c, struct lws *wsi)
 	c->inflight = f;
 	if (n < (int)f->len)
 		return -1;
-	if (more || c->cut_off)
+	if (more || c->cut_off || g_signal)
 		lws_callback_on_writable(wsi);
 	return 0;
 }
@@ -712,7 +726,7 @@ static int callback(struct lws *wsi, enum lws_callback_reasons reason, void *use
 	case LWS_CALLBACK_EVENT_WAIT_CANCELLED:
 		pthread_mutex_lock(&s->lock);
 		for (struct srv_client *c = s->clients; c; c = c->next)
-			if (c->q.len || c->cut_off)
+			if (c->q.len || c->cut_off || g_signal)
 				lws_callback_on_writable(c->wsi);
 		pthread_mutex_unlock(&s->lock);
 		return 0;
@@ -772,14 +786,12 @@ static bool absolute(char *path, size_t cap)
 	return fits;
 }
 
-static bool queues_empty(struct srv *s)
+static uint32_t clients_left(struct srv *s)
 {
-	bool empty = true;
 	pthread_mutex_lock(&s->lock);
-	for (struct srv_client *c = s->clients; c && empty; c = c->next)
-		empty = !c->q.len;
+	uint32_t n = s->nclients;
 	pthread_mutex_unlock(&s->lock);
-	return empty;
+	return n;
 }
 
 int main(int argc, char **argv)
@@ -888,10 +900,11 @@ int main(int argc, char **argv)
 			break;
 	rl_log(RL_LOG_INFO, "%s: finishing", g_signal == SIGINT ? "SIGINT" : "SIGTERM");
 
-	/* Drain: the worker finishes the job in hand, the queues go out (2 s at most). */
+	/* Drain: the worker finishes the job in hand, the queues go out and each
+	 * client gets a close frame (going away), 2 s at most. */
 	srv_worker_stop(s);
 	double until = srv_now() + 2;
-	while (!queues_empty(s) && srv_now() < until) {
+	while (clients_left(s) && srv_now() < until) {
 		lws_cancel_service(s->lws);
 		if (lws_service(s->lws, 0) < 0)
 			break;

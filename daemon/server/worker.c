@@ -209,6 +209,21 @@ static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errl
 
 /* ---- applying requests ---- */
 
+/* Parameter @name of light @light as an edit would give it (its shader space). */
+static bool param_value(struct gpu_shot *g, const char *light, const char *name, float v[16],
+			uint32_t *n)
+{
+	int i = gpu_shot_find_light(g, light);
+	struct gpu_shot_param p;
+	for (uint32_t k = 0; i >= 0 && gpu_shot_light_param(g, (uint32_t)i, k, &p); k++)
+		if (!strcmp(p.name, name)) {
+			memcpy(v, p.value, sizeof(p.value));
+			*n = p.n;
+			return true;
+		}
+	return false;
+}
+
 static bool apply_set(struct gpu_shot *g, const struct srv_job *j, char *err, size_t errlen)
 {
 	/* All or nothing: a refused parameter puts back those set before it. */
@@ -216,7 +231,7 @@ static bool apply_set(struct gpu_shot *g, const struct srv_job *j, char *err, si
 	uint32_t oldn[64];
 	uint32_t n = j->nparams < 64 ? j->nparams : 64;
 	for (uint32_t k = 0; k < n; k++) {
-		if (!gpu_shot_get(g, j->light, j->params[k].name, old[k], &oldn[k]))
+		if (!param_value(g, j->light, j->params[k].name, old[k], &oldn[k]))
 			oldn[k] = 0;
 		if (!gpu_shot_set(g, j->light, j->params[k].name, j->params[k].values,
 				  j->params[k].n, err, errlen)) {

@@ -131,6 +131,35 @@ static void test_errors(void)
 	expect_error(many, PROTO_E_LIMIT, false);
 }
 
+/* Text frames are UTF-8 with no NUL, and one JSON object with nothing after it. */
+static void test_text(void)
+{
+	expect_error("{\"op\":\"\xed\xa0\x80\"}", PROTO_E_MALFORMED, false);   /* a surrogate */
+	expect_error("{\"op\":\"\xc0\xaf\"}", PROTO_E_MALFORMED, false);       /* overlong '/' */
+	expect_error("{\"op\":\"\xf4\x90\x80\x80\"}", PROTO_E_MALFORMED, false); /* past U+10FFFF */
+	expect_error("{\"op\":\"list\"}\xff", PROTO_E_MALFORMED, false);
+	expect_error("{\"op\":\"li\xe2\x82\"}", PROTO_E_MALFORMED, false);     /* cut short */
+	expect_error("{\"op\":\"list\"} x", PROTO_E_MALFORMED, false);
+	expect_error("{\"op\":\"list\"}{}", PROTO_E_MALFORMED, false);
+	expect_error("{\"op\":\"hello\",\"version\":1,\"token\":\"editor-token\\u0000x\"}",
+		     PROTO_E_MALFORMED, false);
+	expect_error("{\"op\":\"open\",\"shot\":\"shadows\\u0000\"}", PROTO_E_MALFORMED, false);
+	struct proto_request r;
+	struct proto_error e;
+	/* a raw NUL inside the frame */
+	CHECK(!proto_parse_request("{\"op\":\"list\"}\0", 15, NULL, &r, &e));
+	CHECK(e.code == PROTO_E_MALFORMED);
+	/* whitespace after the object, and text that is UTF-8 but not ASCII, are fine */
+	CHECK(parse("{\"op\":\"list\"} \r\n", &r, &e) && r.op == PROTO_LIST);
+	proto_request_free(&r);
+	CHECK(parse("{\"op\":\"open\",\"shot\":\"caf\xc3\xa9-\xf0\x9f\x92\xa1\"}", &r, &e) &&
+	      r.op == PROTO_OPEN && !strcmp(r.shot, "caf\xc3\xa9-\xf0\x9f\x92\xa1"));
+	proto_request_free(&r);
+	/* an escaped backslash before "u0000" is no NUL */
+	CHECK(parse("{\"op\":\"open\",\"shot\":\"a\\\\u0000\"}", &r, &e) && r.op == PROTO_OPEN);
+	proto_request_free(&r);
+}
+
 static void test_tiles(void)
 {
 	struct proto_tile t = { 7, 2, PROTO_RGBA16F, 64, 32, 16, 8 }, u;
@@ -170,6 +199,7 @@ int main(void)
 {
 	RUN(test_requests);
 	RUN(test_errors);
+	RUN(test_text);
 	RUN(test_tiles);
 	return test_finish();
 }

@@ -590,6 +590,9 @@ static void test_surface_and_lights(void)
 	free(c);
 	v = 0.7f;
 	CHECK(gpu_shot_set_surface(sh, "plastic", "Kd", &v, 1, err, sizeof(err)));
+	/* the light cache full when the light comes: adding it keeps what is cached */
+	struct gpu_shot_stats st;
+	CHECK(gpu_shot_render(sh, GPU_SHOT_FINAL, &st));
 	/* a point light: a shader the shot does not have, compiled when added */
 	const float xf[16] = { 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 };
 	int k = gpu_shot_add_light(sh, "7", "pointlight", xf, err, sizeof(err));
