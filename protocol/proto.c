@@ -228,44 +228,67 @@ static bool parse_body(const cJSON *o, const struct proto_limits *lim, struct pr
 }
 
 /*
- * Is @s (@n bytes) UTF-8 as RFC 3629 has it (no overlong forms, no
- * surrogates, nothing past U+10FFFF) with no NUL byte? A WebSocket text frame
- * must be, and what the daemon echoes in its messages must be too.
+ * The length of the UTF-8 sequence at @s (@n bytes left) as RFC 3629 has it
+ * (no overlong forms, no surrogates, nothing past U+10FFFF), or 0 when it is
+ * malformed or cut short. A NUL byte is malformed here.
  */
+static size_t utf8_seq(const unsigned char *s, size_t n)
+{
+	unsigned char c = s[0];
+	if (c == 0)
+		return 0;
+	if (c < 0x80)
+		return 1;
+	size_t len;
+	uint32_t cp, min;
+	if ((c & 0xe0) == 0xc0) {
+		len = 2, cp = c & 0x1f, min = 0x80;
+	} else if ((c & 0xf0) == 0xe0) {
+		len = 3, cp = c & 0x0f, min = 0x800;
+	} else if ((c & 0xf8) == 0xf0) {
+		len = 4, cp = c & 0x07, min = 0x10000;
+	} else {
+		return 0;
+	}
+	if (n < len)
+		return 0;
+	for (size_t k = 1; k < len; k++) {
+		if ((s[k] & 0xc0) != 0x80)
+			return 0;
+		cp = (cp << 6) | (s[k] & 0x3f);
+	}
+	if (cp < min || cp > 0x10ffff || (cp >= 0xd800 && cp <= 0xdfff))
+		return 0;
+	return len;
+}
+
+/* Is @s (@n bytes) UTF-8 with no NUL byte? A WebSocket text frame must be. */
 static bool valid_utf8(const unsigned char *s, size_t n)
 {
-	size_t i = 0;
-	while (i < n) {
-		unsigned char c = s[i];
-		if (c == 0)
+	for (size_t i = 0, k; i < n; i += k)
+		if (!(k = utf8_seq(s + i, n - i)))
 			return false;
-		if (c < 0x80) {
-			i++;
+	return true;
+}
+
+void proto_utf8_clean(char *s)
+{
+	size_t n = strlen(s);
+	for (size_t i = 0; i < n;) {
+		size_t k = utf8_seq((const unsigned char *)s + i, n - i);
+		if (!k) {
+			s[i++] = '?';
 			continue;
 		}
-		size_t len;
-		uint32_t cp, min;
-		if ((c & 0xe0) == 0xc0) {
-			len = 2, cp = c & 0x1f, min = 0x80;
-		} else if ((c & 0xf0) == 0xe0) {
-			len = 3, cp = c & 0x0f, min = 0x800;
-		} else if ((c & 0xf8) == 0xf0) {
-			len = 4, cp = c & 0x07, min = 0x10000;
-		} else {
-			return false;
-		}
-		if (n - i < len)
-			return false;
-		for (size_t k = 1; k < len; k++) {
-			if ((s[i + k] & 0xc0) != 0x80)
-				return false;
-			cp = (cp << 6) | (s[i + k] & 0x3f);
-		}
-		if (cp < min || cp > 0x10ffff || (cp >= 0xd800 && cp <= 0xdfff))
-			return false;
-		i += len;
+		i += k;
 	}
-	return true;
+}
+
+bool proto_add_id(cJSON *o, int64_t id)
+{
+	char text[32];
+	snprintf(text, sizeof(text), "%lld", (long long)id);
+	return cJSON_AddRawToObject(o, "id", text) != NULL;
 }
 
 /* Does a string of the JSON text @s hold the escape \u0000 (a NUL that C strings would cut at)? */
@@ -368,9 +391,13 @@ char *proto_error_json(const struct proto_error *e)
 		return NULL;
 	cJSON_AddStringToObject(o, "op", "error");
 	if (e->has_id)
-		cJSON_AddNumberToObject(o, "id", (double)e->id);
+		proto_add_id(o, e->id);
 	cJSON_AddStringToObject(o, "code", proto_error_name(e->code));
-	cJSON_AddStringToObject(o, "message", e->message);
+	char msg[sizeof(e->message)];
+	memcpy(msg, e->message, sizeof(msg));
+	msg[sizeof(msg) - 1] = '\0';
+	proto_utf8_clean(msg);
+	cJSON_AddStringToObject(o, "message", msg);
 	char *s = cJSON_PrintUnformatted(o);
 	cJSON_Delete(o);
 	return s;

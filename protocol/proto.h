@@ -108,6 +108,22 @@ bool proto_parse_request(const char *text, size_t len, const struct proto_limits
 			 struct proto_request *out, struct proto_error *err);
 void proto_request_free(struct proto_request *r);
 
+struct cJSON;
+
+/**
+ * Add member "id" to reply @o as a whole number, exactly (cJSON prints
+ * numbers past about 4.5e15 with 15 significant digits). False when out of
+ * memory.
+ */
+bool proto_add_id(struct cJSON *o, int64_t id);
+
+/**
+ * Make @s valid UTF-8 in place: every byte of a malformed or cut-short
+ * sequence becomes '?'. Text frames must be UTF-8, and messages the daemon
+ * writes may quote what a client sent or cut a name in the middle.
+ */
+void proto_utf8_clean(char *s);
+
 /** The JSON text of an error reply (free() it); NULL when out of memory. */
 char *proto_error_json(const struct proto_error *e);
 

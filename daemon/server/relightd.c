@@ -79,6 +79,8 @@ void srv_send_json(struct srv *s, struct srv_client *c, const cJSON *j)
 	char *text = cJSON_PrintUnformatted(j);
 	if (!text)
 		return;
+	/* Names from RIBs and messages quoting clients need not be UTF-8. */
+	proto_utf8_clean(text);
 	struct srv_frame *f = srv_frame_text(text, strlen(text));
 	free(text);
 	srv_send(s, c, f);
@@ -146,7 +148,7 @@ static const cJSON *make_progress(void *user, int64_t id, bool has_id)
 	m->o = cJSON_CreateObject();
 	cJSON_AddStringToObject(m->o, "op", "progress");
 	if (has_id)
-		cJSON_AddNumberToObject(m->o, "id", (double)id);
+		proto_add_id(m->o, id);
 	cJSON_AddStringToObject(m->o, "shot", m->shot);
 	cJSON_AddNumberToObject(m->o, "fraction", m->fraction);
 	cJSON_AddStringToObject(m->o, "what", m->what);
@@ -253,7 +255,7 @@ static cJSON *reply_to(const char *op, const struct proto_request *r)
 	cJSON *o = cJSON_CreateObject();
 	cJSON_AddStringToObject(o, "op", op);
 	if (r->has_id)
-		cJSON_AddNumberToObject(o, "id", (double)r->id);
+		proto_add_id(o, r->id);
 	return o;
 }
 
@@ -848,6 +850,9 @@ int main(int argc, char **argv)
 	 * as `relight bake` run in it would (before any thread that opens files). */
 	if (!absolute(s->cfg.shots_dir, sizeof(s->cfg.shots_dir)) ||
 	    !absolute(s->cfg.snapshot_dir, sizeof(s->cfg.snapshot_dir)) ||
+	    !absolute(s->cfg.cert, sizeof(s->cfg.cert)) ||
+	    !absolute(s->cfg.key, sizeof(s->cfg.key)) ||
+	    !absolute(s->cfg.viewer_dir, sizeof(s->cfg.viewer_dir)) ||
 	    chdir(s->cfg.shots_dir)) {
 		fprintf(stderr, "relightd: cannot work in %s: %s\n", s->cfg.shots_dir,
 			strerror(errno));
@@ -882,8 +887,14 @@ int main(int argc, char **argv)
 	info.timeout_secs = 30;
 	s->lws = lws_create_context(&info);
 	if (!s->lws) {
-		fprintf(stderr, "relightd: cannot listen on %s:%d (in use, or not an address of this "
-			"machine)\n", s->cfg.host, s->cfg.port);
+		if (s->cfg.cert[0])
+			fprintf(stderr, "relightd: cannot listen on %s:%d with TLS (the address in "
+				"use or not this machine's, or %s / %s unreadable or not a "
+				"matching PEM certificate and key)\n", s->cfg.host, s->cfg.port,
+				s->cfg.cert, s->cfg.key);
+		else
+			fprintf(stderr, "relightd: cannot listen on %s:%d (in use, or not an address "
+				"of this machine)\n", s->cfg.host, s->cfg.port);
 		goto out;
 	}
 	struct lws_vhost *vh = lws_get_vhost_by_name(s->lws, "default");

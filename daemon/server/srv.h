@@ -21,6 +21,7 @@
 #include <pthread.h>
 #include <stdbool.h>
 #include <stdint.h>
+#include <stdio.h>
 
 struct cJSON;
 struct gpu_shot;
@@ -62,6 +63,9 @@ struct srv_shot {
 	char name[SRV_SHOT_NAME_MAX + 1];
 	char path[4096];
 	struct gpu_shot *gpu;      /* the worker's; NULL when not resident */
+	FILE *diag;                /* the runtime's messages about it (kept while it lives) */
+	char *diag_buf;
+	size_t diag_len;
 	bool failed;               /* its last load failed */
 	bool baking;
 	struct srv_job *jobs, **jobs_tail;

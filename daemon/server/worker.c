@@ -144,36 +144,52 @@ static void make_room(struct srv *s, struct srv_shot *keep)
 static bool apply_job(struct srv *s, struct srv_shot *sh, const struct srv_job *j, char *err,
 		      size_t errlen, enum proto_error_code *code);
 
+/*
+ * What the runtime said about @sh since the last call (NULL: nothing), and
+ * forget it. The runtime keeps the FILE it was opened with for every later
+ * message, so the stream lives as long as the shot does.
+ */
+static const char *diag_take(struct srv_shot *sh)
+{
+	if (!sh->diag || fflush(sh->diag) || !sh->diag_len || !sh->diag_buf)
+		return NULL;
+	size_t n = sh->diag_len;
+	while (n && (sh->diag_buf[n - 1] == '\n' || sh->diag_buf[n - 1] == ' '))
+		sh->diag_buf[--n] = '\0';
+	rewind(sh->diag);
+	return n ? sh->diag_buf : NULL;
+}
+
+/* Log what the runtime said about @sh. */
+static void diag_log(struct srv_shot *sh, enum rl_log_level level)
+{
+	const char *m = diag_take(sh);
+	if (m)
+		rl_log(level, "shot '%s': %s", sh->name, m);
+}
+
 /* Load @sh into GPU memory (and replay its edits): false with the reason in @err. */
 static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errlen)
 {
 	if (sh->gpu)
 		return true;
-	char *dbuf = NULL;
-	size_t dlen = 0;
-	FILE *diag = open_memstream(&dbuf, &dlen);
+	if (!sh->diag)
+		sh->diag = open_memstream(&sh->diag_buf, &sh->diag_len);
 	struct gpu_shot_opts o = {
-		.diag = diag ? diag : stderr,
+		.diag = sh->diag ? sh->diag : stderr,
 		.texture_path = s->cfg.shots_dir,
 		.budget = s->cfg.gpu_budget,
 	};
 	double t = srv_now();
 	sh->gpu = gpu_shot_open(s->gpu, sh->path, &o);
-	if (diag)
-		fclose(diag);
 	if (!sh->gpu) {
+		const char *m = diag_take(sh);
 		snprintf(err, errlen, "shot '%s' cannot be loaded: %s", sh->name,
-			 dbuf && *dbuf ? dbuf : "unknown reason");
-		size_t n = strlen(err);
-		while (n && (err[n - 1] == '\n' || err[n - 1] == ' '))
-			err[--n] = '\0';
-		free(dbuf);
+			 m ? m : "unknown reason");
 		sh->failed = true;
 		return false;
 	}
-	if (dbuf && *dbuf)
-		rl_log(RL_LOG_WARN, "shot '%s': %s", sh->name, dbuf);
-	free(dbuf);
+	diag_log(sh, RL_LOG_WARN);
 	sh->failed = false;
 	sh->bytes = gpu_shot_bytes(sh->gpu);
 	sh->width = gpu_shot_width(sh->gpu);
@@ -334,7 +350,7 @@ static cJSON *opened_json(const struct srv_shot *sh, const struct srv_job *j)
 	cJSON *o = cJSON_CreateObject();
 	cJSON_AddStringToObject(o, "op", "opened");
 	if (j->has_id)
-		cJSON_AddNumberToObject(o, "id", (double)j->id);
+		proto_add_id(o, j->id);
 	cJSON_AddStringToObject(o, "shot", sh->name);
 	cJSON_AddNumberToObject(o, "width", gpu_shot_width(g));
 	cJSON_AddNumberToObject(o, "height", gpu_shot_height(g));
@@ -376,7 +392,7 @@ static void reply_simple(struct srv *s, uint64_t client, const char *op, const s
 	cJSON *o = cJSON_CreateObject();
 	cJSON_AddStringToObject(o, "op", op);
 	if (j->has_id)
-		cJSON_AddNumberToObject(o, "id", (double)j->id);
+		proto_add_id(o, j->id);
 	if (edit >= 0)
 		cJSON_AddNumberToObject(o, "edit", (double)edit);
 	pthread_mutex_lock(&s->lock);
@@ -495,10 +511,16 @@ static void send_level(struct srv *s, struct srv_shot *sh, const struct images *
 	for (int f = 1; f <= 2; f++)
 		if (t0 > 0 && count[f])
 			tiles[f][0]->t0 = t0;
-	char msg[160];
-	int n = snprintf(msg, sizeof(msg), "{\"op\":\"level\",\"shot\":\"%s\",\"edit\":%u,\"level\":%d,\"ms\":%.3f}",
-			 sh->name, edit, level, ms);
-	struct srv_frame *lv = srv_frame_text(msg, (size_t)n);
+	cJSON *o = cJSON_CreateObject();
+	cJSON_AddStringToObject(o, "op", "level");
+	cJSON_AddStringToObject(o, "shot", sh->name);
+	cJSON_AddNumberToObject(o, "edit", edit);
+	cJSON_AddNumberToObject(o, "level", level);
+	cJSON_AddNumberToObject(o, "ms", ms);
+	char *msg = cJSON_PrintUnformatted(o);
+	cJSON_Delete(o);
+	struct srv_frame *lv = msg ? srv_frame_text(msg, strlen(msg)) : NULL;
+	free(msg);
 	for (struct srv_client *c = s->clients; c; c = c->next) {
 		if (c->shot != sh || (only && c->id != only))
 			continue;
@@ -573,7 +595,7 @@ static void write_snapshot(struct srv *s, struct srv_shot *sh, const struct srv_
 	cJSON *o = cJSON_CreateObject();
 	cJSON_AddStringToObject(o, "op", "snapshot");
 	if (j->has_id)
-		cJSON_AddNumberToObject(o, "id", (double)j->id);
+		proto_add_id(o, j->id);
 	cJSON_AddStringToObject(o, "path", path);
 	cJSON_AddNumberToObject(o, "edit", sh->edit);
 	pthread_mutex_lock(&s->lock);
@@ -611,7 +633,15 @@ static void do_open(struct srv *s, struct srv_shot *sh, const struct srv_job *j,
 	cJSON_Delete(o);
 }
 
+static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struct images *im);
+
 static void do_job(struct srv *s, struct srv_shot *sh, struct srv_job *j, struct images *im)
+{
+	do_job_(s, sh, j, im);
+	diag_log(sh, RL_LOG_WARN);
+}
+
+static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struct images *im)
 {
 	char err[1024];
 	if (!sh->gpu) {
@@ -740,6 +770,7 @@ static void *worker_main(void *arg)
 			  read_level(sh->gpu, level, &im, need8, need16);
 		pthread_mutex_lock(&s->lock);
 		if (!ok) {
+			diag_log(sh, RL_LOG_ERROR);
 			rl_log(RL_LOG_ERROR, "shot '%s': level %d failed", sh->name, level);
 			sh->next_level = GPU_SHOT_LEVELS;
 			continue;
@@ -806,6 +837,9 @@ void srv_worker_stop(struct srv *s)
 		for (size_t i = 0; i < sh->nlog; i++)
 			srv_job_free(sh->log[i]);
 		free(sh->log);
+		if (sh->diag)
+			fclose(sh->diag);
+		free(sh->diag_buf);
 		free(sh);
 	}
 }

@@ -160,6 +160,36 @@ static void test_text(void)
 	proto_request_free(&r);
 }
 
+/* Replies: ids printed exactly, text made UTF-8. */
+static void test_reply_text(void)
+{
+	static const int64_t ids[] = { 0, -1, 9007199254740992LL, -9007199254740992LL,
+				       6000000000000001LL, 4503599627370497LL };
+	for (size_t i = 0; i < sizeof(ids) / sizeof(ids[0]); i++) {
+		struct proto_error e = { .code = PROTO_E_RANGE, .has_id = true, .id = ids[i] };
+		snprintf(e.message, sizeof(e.message), "x");
+		char *j = proto_error_json(&e), want[64];
+		snprintf(want, sizeof(want), "\"id\":%lld,", (long long)ids[i]);
+		CHECK(j && strstr(j, want));
+		free(j);
+	}
+	char a[] = "ok \xc3\xa9 cut \xe2\x82", b[] = "\xed\xa0\x80x", c[] = "caf\xc3\xa9";
+	proto_utf8_clean(a);
+	proto_utf8_clean(b);
+	proto_utf8_clean(c);
+	CHECK_STR(a, "ok \xc3\xa9 cut ??");
+	CHECK_STR(b, "???x");
+	CHECK_STR(c, "caf\xc3\xa9");
+	/* a message cut in the middle of a character comes out as UTF-8 */
+	struct proto_error e = { .code = PROTO_E_UNKNOWN_OP };
+	memset(e.message, 'a', sizeof(e.message));
+	e.message[sizeof(e.message) - 2] = (char)0xe2;
+	e.message[sizeof(e.message) - 1] = '\0';
+	char *j = proto_error_json(&e);
+	CHECK(j && !strchr(j, (char)0xe2) && strstr(j, "a?\""));
+	free(j);
+}
+
 static void test_tiles(void)
 {
 	struct proto_tile t = { 7, 2, PROTO_RGBA16F, 64, 32, 16, 8 }, u;
@@ -200,6 +230,7 @@ int main(void)
 	RUN(test_requests);
 	RUN(test_errors);
 	RUN(test_text);
+	RUN(test_reply_text);
 	RUN(test_tiles);
 	return test_finish();
 }
