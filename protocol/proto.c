@@ -23,6 +23,7 @@ static const char *const op_names[PROTO_OP_COUNT] = {
 	[PROTO_CLOSE] = "close",
 	[PROTO_SNAPSHOT] = "snapshot",
 	[PROTO_STATS] = "stats",
+	[PROTO_PICK] = "pick",
 };
 
 const char *proto_op_name(enum proto_op op)
@@ -168,6 +169,19 @@ static bool params(const cJSON *o, const char *op, bool required, const struct p
 	return true;
 }
 
+/* A pixel coordinate: a whole number in [0, 2^31). */
+static bool need_coord(const cJSON *o, const char *key, const char *op, uint32_t *out,
+		       struct proto_error *e)
+{
+	const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+	if (!cJSON_IsNumber(v) || v->valuedouble != floor(v->valuedouble))
+		return set_error(e, PROTO_E_TYPE, "%s needs '%s', a whole number", op, key);
+	if (v->valuedouble < 0 || v->valuedouble >= 2147483648.0)
+		return set_error(e, PROTO_E_RANGE, "%s: '%s' is not a pixel (0 to 2^31 - 1)", op, key);
+	*out = (uint32_t)v->valuedouble;
+	return true;
+}
+
 static bool parse_body(const cJSON *o, const struct proto_limits *lim, struct proto_request *r,
 		       struct proto_error *e)
 {
@@ -186,6 +200,8 @@ static bool parse_body(const cJSON *o, const struct proto_limits *lim, struct pr
 					 r->version, PROTO_VERSION);
 		return opt_string(o, "token", ms, op, &r->token, e);
 	}
+	case PROTO_PICK:
+		return need_coord(o, "x", op, &r->x, e) && need_coord(o, "y", op, &r->y, e);
 	case PROTO_LIST:
 	case PROTO_CLOSE:
 	case PROTO_SNAPSHOT:

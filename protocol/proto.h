@@ -27,6 +27,7 @@ enum proto_op {
 	PROTO_CLOSE,
 	PROTO_SNAPSHOT,
 	PROTO_STATS,
+	PROTO_PICK,
 	PROTO_OP_COUNT
 };
 
@@ -93,6 +94,7 @@ struct proto_request {
 	const char *light;        /* set, add_light, remove_light, solo (NULL: none), mute, freeze */
 	const char *shader;       /* add_light */
 	bool on;                  /* mute (default true), freeze (default true) */
+	uint32_t x, y;            /* pick: a pixel, 0 at the top left */
 	struct proto_param *params;   /* set, add_light */
 	uint32_t nparams;
 	void *priv;

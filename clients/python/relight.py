@@ -935,6 +935,10 @@ class Client:
         """Have the daemon write an OpenEXR of the current state; returns its path there."""
         return self.request("snapshot")["path"]
 
+    def pick(self, x, y):
+        """What pixel (x, y) shows: {"object": id or None, "lights": [names reaching it]}."""
+        return self.request("pick", x=x, y=y)
+
     def stats(self):
         """This session's counters (edits, tiles_sent, tiles_dropped, bytes_sent, ...)."""
         return self.request("stats")

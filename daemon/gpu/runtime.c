@@ -178,6 +178,7 @@ struct gpu_shot {
 	uint32_t nsurfaces;
 
 	struct gpu_ifb *ifb;
+	uint32_t *pick;            /* per pixel: the object of its heaviest sample (UINT32_MAX: none) */
 	struct gpu_shadow_geometry *shadow_geo;  /* NULL: the shot has none */
 	uint64_t level_entries[NBANDS];
 	struct gpu_buffer *base, *cache, *colors, *scratch, *zero;
@@ -1310,6 +1311,45 @@ static void load_shadow_geometry(struct gpu_shot *s, const struct shot_file *f)
 	free(q);
 }
 
+/*
+ * For picking: per pixel, the object of the sample that weighs most in it.
+ * Sample ids of the framebuffer count the rows of the surfaces' tables in
+ * the order the metadata lists them.
+ */
+static void pick_map(struct gpu_shot *s, const struct shot_file *f, const struct shot_deep *ifb)
+{
+	uint32_t *obj = rl_xmalloc((s->nsamples + 1) * sizeof(uint32_t));
+	uint64_t at = 0;
+	const cJSON *sj;
+	cJSON_ArrayForEach(sj, cJSON_GetObjectItemCaseSensitive(s->meta, "surfaces")) {
+		const char *tn = shot_meta_str(sj, "table");
+		const struct shot_table *t = tn ? shot_find_table(f, tn) : NULL;
+		const uint32_t *o = t ? uint_channel(t, "object") : NULL;
+		for (uint64_t r = 0; t && r < t->nrows && at < s->nsamples; r++)
+			obj[at++] = o ? o[r] : UINT32_MAX;
+	}
+	while (at < s->nsamples)
+		obj[at++] = UINT32_MAX;
+	size_t np = (size_t)s->width * s->height;
+	free(s->pick);
+	s->pick = rl_xmalloc(np * sizeof(uint32_t));
+	const uint32_t *sid = ifb->channels[0].data;
+	const float *w = ifb->channels[1].type != SHOT_UINT ? ifb->channels[1].data : NULL;
+	for (size_t p = 0; p < np; p++) {
+		uint32_t best = UINT32_MAX;
+		float bw = -1;
+		for (uint64_t e = ifb->offsets[p]; e < ifb->offsets[p + 1]; e++) {
+			float we = w ? w[e] : 1.0f;
+			if (sid[e] < s->nsamples && we > bw) {
+				bw = we;
+				best = obj[sid[e]];
+			}
+		}
+		s->pick[p] = best;
+	}
+	free(obj);
+}
+
 static bool load_framebuffer(struct gpu_shot *s, const struct shot_file *f, const uint32_t *remap)
 {
 	const struct shot_deep *ifb = shot_find_deep(f, "ifb");
@@ -1323,6 +1363,7 @@ static bool load_framebuffer(struct gpu_shot *s, const struct shot_file *f, cons
 	const uint32_t *sid = ifb->channels[0].data;
 	for (uint64_t e = 0; e < ne; e++)
 		ids[e] = sid[e] < s->nsamples ? remap[sid[e]] : UINT32_MAX;
+	pick_map(s, f, ifb);
 	struct gpu_ifb_desc d = {
 		.width = s->width, .height = s->height, .offsets = ifb->offsets, .sample = ids,
 		.weight = ifb->channels[1].data, .alpha = pix->channels[0].data,
@@ -1690,6 +1731,7 @@ void gpu_shot_close(struct gpu_shot *s)
 	free(s->shader_path);
 	free(s->lshaders);
 	gpu_ifb_destroy(s->ifb);
+	free(s->pick);
 	gpu_shadow_geometry_destroy(s->shadow_geo);
 	gpu_buffer_destroy(s->base);
 	gpu_buffer_destroy(s->cache);
@@ -1897,6 +1939,22 @@ bool gpu_shot_light_param(const struct gpu_shot *s, uint32_t light, uint32_t k,
 	}
 	lstate_free(&own);
 	return found;
+}
+
+bool gpu_shot_pick(const struct gpu_shot *s, uint32_t x, uint32_t y, uint32_t *object)
+{
+	if (x >= s->width || y >= s->height || !s->pick)
+		return false;
+	*object = s->pick[(size_t)y * s->width + x];
+	return true;
+}
+
+bool gpu_shot_light_reaches(const struct gpu_shot *s, uint32_t light, uint32_t object)
+{
+	if (light >= s->nlights || !s->lights[light].name || object >= s->nobjects)
+		return false;
+	const struct light *L = &s->lights[light];
+	return light_on(s, light) && L->link_cpu && L->link_cpu[object] > 0;
 }
 
 bool gpu_shot_mute(struct gpu_shot *s, const char *light, bool muted, char *err, size_t errlen)

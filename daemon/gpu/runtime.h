@@ -113,6 +113,16 @@ struct gpu_shot_param {
 bool gpu_shot_light_param(const struct gpu_shot *s, uint32_t light, uint32_t k,
 			  struct gpu_shot_param *out);
 
+/**
+ * What pixel (@x, @y) shows (0, 0 the top left): the object (primitive id of
+ * the bake) of the sample that weighs most in it, UINT32_MAX for none. False
+ * for a pixel outside the image.
+ */
+bool gpu_shot_pick(const struct gpu_shot *s, uint32_t x, uint32_t y, uint32_t *object);
+
+/** Whether light @light (index) reaches object @object: on, and linked to it. */
+bool gpu_shot_light_reaches(const struct gpu_shot *s, uint32_t light, uint32_t object);
+
 /** Mute or unmute a light (a muted light contributes nothing). */
 bool gpu_shot_mute(struct gpu_shot *s, const char *light, bool muted, char *err, size_t errlen);
 

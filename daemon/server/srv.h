@@ -56,6 +56,7 @@ struct srv_job {
 	uint32_t nparams;
 	bool on;
 	enum proto_format format;
+	uint32_t x, y;             /* pick */
 	struct srv_job *next;
 };
 

@@ -46,6 +46,8 @@ struct srv_job *srv_job_from(const struct proto_request *r, uint64_t client, dou
 	j->t0 = t0;
 	j->on = r->on;
 	j->format = r->format;
+	j->x = r->x;
+	j->y = r->y;
 	j->light = dup_str(r->light);
 	j->shader = dup_str(r->shader);
 	bool ok = (!r->light || j->light) && (!r->shader || j->shader);
@@ -606,6 +608,40 @@ static void write_snapshot(struct srv *s, struct srv_shot *sh, const struct srv_
 	cJSON_Delete(o);
 }
 
+/* What is under a pixel: the object, and the lights that reach it. */
+static void do_pick(struct srv *s, struct srv_shot *sh, const struct srv_job *j)
+{
+	struct gpu_shot *g = sh->gpu;
+	uint32_t obj;
+	if (!gpu_shot_pick(g, j->x, j->y, &obj)) {
+		char msg[128];
+		snprintf(msg, sizeof(msg), "pick: (%u, %u) is outside the %ux%u image", j->x, j->y,
+			 gpu_shot_width(g), gpu_shot_height(g));
+		reply_error(s, j, PROTO_E_RANGE, msg);
+		return;
+	}
+	cJSON *o = cJSON_CreateObject();
+	cJSON_AddStringToObject(o, "op", "picked");
+	if (j->has_id)
+		proto_add_id(o, j->id);
+	cJSON_AddNumberToObject(o, "x", j->x);
+	cJSON_AddNumberToObject(o, "y", j->y);
+	if (obj == UINT32_MAX)
+		cJSON_AddNullToObject(o, "object");
+	else
+		cJSON_AddNumberToObject(o, "object", obj);
+	cJSON *lights = cJSON_AddArrayToObject(o, "lights");
+	for (uint32_t i = 0; obj != UINT32_MAX && i < gpu_shot_light_count(g); i++)
+		if (gpu_shot_light_reaches(g, i, obj))
+			cJSON_AddItemToArray(lights, cJSON_CreateString(gpu_shot_light_name(g, i)));
+	pthread_mutex_lock(&s->lock);
+	struct srv_client *c = srv_client_find(s, j->client);
+	if (c)
+		srv_send_json(s, c, o);
+	pthread_mutex_unlock(&s->lock);
+	cJSON_Delete(o);
+}
+
 static void do_open(struct srv *s, struct srv_shot *sh, const struct srv_job *j, struct images *im)
 {
 	cJSON *o = opened_json(sh, j);
@@ -660,6 +696,10 @@ static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struc
 		return;
 	case PROTO_SNAPSHOT:
 		write_snapshot(s, sh, j, im);
+		srv_job_free(j);
+		return;
+	case PROTO_PICK:
+		do_pick(s, sh, j);
 		srv_job_free(j);
 		return;
 	default:

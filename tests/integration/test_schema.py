@@ -293,6 +293,13 @@ REQUESTS = [
     ('{"op":"close"}', "ok"),
     ('{"op":"snapshot","id":5}', "ok"),
     ('{"op":"stats","id":6}', "ok"),
+    ('{"op":"pick","x":0,"y":0}', "ok"),
+    ('{"op":"pick","id":7,"x":2147483647,"y":12}', "ok"),
+    ('{"op":"pick","x":1}', "type"),
+    ('{"op":"pick","x":1.5,"y":0}', "type"),
+    ('{"op":"pick","x":-1,"y":0}', "range"),
+    ('{"op":"pick","x":2147483648,"y":0}', "range"),
+    ('{"op":"pick","x":"1","y":0}', "type"),
 ]
 
 # Frames the schema and the codec cannot judge alike, each with the codec's
@@ -470,6 +477,8 @@ def client_session(d):
     e = c.remove_light("extra")
     c.wait(e, FINAL)
     c.snapshot()
+    c.pick(1, 1)
+    C.raises(lambda: c.pick(1 << 20, 0), "range", "a pixel outside the image")
     s = c.stats()
     C.equal((s.get("shot"), s.get("edit")), ("lights32", e), "stats name the open shot and edit")
     C.raises(lambda: c.set("nope", intensity=1), "unknown_light", "set of an unknown light")
