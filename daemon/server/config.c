@@ -75,7 +75,8 @@ static const struct setting settings[] = {
 	  .help = "PEM certificate chain: serve wss:// and https:// (needs --tls-key)." },
 	{ .name = "tls-key", .kind = K_PATH, FIELD(key), .arg = "FILE", .dflt = "none",
 	  .help = "PEM private key of --tls-cert." },
-	{ .name = "viewer", .kind = K_PATH, FIELD(viewer_dir), .arg = "DIR", .dflt = "none",
+	{ .name = "viewer", .kind = K_PATH, FIELD(viewer_dir), .arg = "DIR",
+	  .dflt = "relight's own viewer (clients/web)",
 	  .help = "Folder of the browser viewer's static files, served over HTTP GET." },
 	{ .name = "snapshots", .kind = K_PATH, FIELD(snapshot_dir), .arg = "DIR",
 	  .dflt = "SHOTS/snapshots",
@@ -630,7 +631,7 @@ void srv_config_usage(FILE *out)
 	      "opens a shot, sends light edits as JSON messages and gets back image tiles,\n"
 	      "refined progressively, of the relit frame (protocol/README.md). Over HTTP\n"
 	      "it answers GET /healthz (liveness), GET /metrics (Prometheus text) and,\n"
-	      "with --viewer, the browser viewer's files.\n\nOptions:\n",
+	      "the browser viewer's files.\n\nOptions:\n",
 	      out);
 	for (size_t i = 0; i < NSETTINGS; i++) {
 		const struct setting *s = &settings[i];

@@ -846,6 +846,14 @@ int main(int argc, char **argv)
 		fprintf(stderr, "relightd: %s\n", err);
 		goto out;
 	}
+	/* The viewer: relight's own, from the source tree or where it is installed. */
+	static const char *const viewers[] = { RELIGHTD_SOURCE_WEB_DIR, RELIGHTD_WEB_DIR };
+	for (size_t i = 0; !s->cfg.viewer_dir[0] && i < 2; i++) {
+		char index[4096 + 16];
+		snprintf(index, sizeof(index), "%s/index.html", viewers[i]);
+		if (!access(index, R_OK))
+			snprintf(s->cfg.viewer_dir, sizeof(s->cfg.viewer_dir), "%s", viewers[i]);
+	}
 	/* RIBs name shadow maps and textures relative to their folder: work there,
 	 * as `relight bake` run in it would (before any thread that opens files). */
 	if (!absolute(s->cfg.shots_dir, sizeof(s->cfg.shots_dir)) ||
