@@ -388,6 +388,17 @@ static cJSON *opened_json(const struct srv_shot *sh, const struct srv_job *j)
 	return o;
 }
 
+/* Send @o (consumed) to client @client if it is still connected. */
+static void reply_json(struct srv *s, uint64_t client, cJSON *o)
+{
+	pthread_mutex_lock(&s->lock);
+	struct srv_client *c = srv_client_find(s, client);
+	if (c)
+		srv_send_json(s, c, o);
+	pthread_mutex_unlock(&s->lock);
+	cJSON_Delete(o);
+}
+
 static void reply_simple(struct srv *s, uint64_t client, const char *op, const struct srv_job *j,
 			 int64_t edit)
 {
@@ -397,12 +408,7 @@ static void reply_simple(struct srv *s, uint64_t client, const char *op, const s
 		proto_add_id(o, j->id);
 	if (edit >= 0)
 		cJSON_AddNumberToObject(o, "edit", (double)edit);
-	pthread_mutex_lock(&s->lock);
-	struct srv_client *c = srv_client_find(s, client);
-	if (c)
-		srv_send_json(s, c, o);
-	pthread_mutex_unlock(&s->lock);
-	cJSON_Delete(o);
+	reply_json(s, client, o);
 }
 
 static void reply_error(struct srv *s, const struct srv_job *j, enum proto_error_code code,
@@ -600,12 +606,7 @@ static void write_snapshot(struct srv *s, struct srv_shot *sh, const struct srv_
 		proto_add_id(o, j->id);
 	cJSON_AddStringToObject(o, "path", path);
 	cJSON_AddNumberToObject(o, "edit", sh->edit);
-	pthread_mutex_lock(&s->lock);
-	struct srv_client *c = srv_client_find(s, j->client);
-	if (c)
-		srv_send_json(s, c, o);
-	pthread_mutex_unlock(&s->lock);
-	cJSON_Delete(o);
+	reply_json(s, j->client, o);
 }
 
 /* What is under a pixel: the object, and the lights that reach it. */
@@ -634,12 +635,7 @@ static void do_pick(struct srv *s, struct srv_shot *sh, const struct srv_job *j)
 	for (uint32_t i = 0; obj != UINT32_MAX && i < gpu_shot_light_count(g); i++)
 		if (gpu_shot_light_reaches(g, i, obj))
 			cJSON_AddItemToArray(lights, cJSON_CreateString(gpu_shot_light_name(g, i)));
-	pthread_mutex_lock(&s->lock);
-	struct srv_client *c = srv_client_find(s, j->client);
-	if (c)
-		srv_send_json(s, c, o);
-	pthread_mutex_unlock(&s->lock);
-	cJSON_Delete(o);
+	reply_json(s, j->client, o);
 }
 
 static void do_open(struct srv *s, struct srv_shot *sh, const struct srv_job *j, struct images *im)
