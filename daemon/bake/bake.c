@@ -5,6 +5,7 @@
  * pixel's entries sorted heaviest first) and the shot file.
  */
 #include "bake.h"
+#include "fileutil.h"
 #include "shadowgeo.h"
 #include "ri.h"
 
@@ -412,16 +413,9 @@ static int cmp_weight_desc(const void *pa, const void *pb)
  */
 static void add_source(cJSON *j, const char *path)
 {
-	char cwd[4096];
-	if (path && path[0] != '/' && getcwd(cwd, sizeof(cwd))) {
-		size_t n = strlen(cwd) + strlen(path) + 2;
-		char *abs = rl_xmalloc(n);
-		snprintf(abs, n, "%s/%s", cwd, path[0] == '.' && path[1] == '/' ? path + 2 : path);
-		cJSON_AddStringToObject(j, "source", abs);
-		free(abs);
-		return;
-	}
-	cJSON_AddStringToObject(j, "source", path ? path : "");
+	char *abs = path ? rl_path_absolute(path) : NULL;
+	cJSON_AddStringToObject(j, "source", abs ? abs : path ? path : "");
+	free(abs);
 }
 
 static cJSON *matrix_json(const float m[16])

@@ -235,6 +235,22 @@ char *rl_read_file(const char *path, size_t maxlen, size_t *len, char *err, size
 	return buf;
 }
 
+char *rl_path_absolute(const char *path)
+{
+	char cwd[4096];
+	if (path[0] == '/')
+		return strdup(path);
+	if (!getcwd(cwd, sizeof(cwd)))
+		return NULL;
+	if (path[0] == '.' && path[1] == '/')
+		path += 2;
+	size_t n = strlen(cwd) + strlen(path) + 2;
+	char *abs = malloc(n);
+	if (abs)
+		snprintf(abs, n, "%s/%s", cwd, path);
+	return abs;
+}
+
 bool rl_mkdir_p(const char *path)
 {
 	size_t n = strlen(path);

@@ -61,6 +61,13 @@ bool rl_write_file_atomic(const char *path, const void *data, size_t len, char *
  */
 char *rl_read_file(const char *path, size_t maxlen, size_t *len, char *err, size_t errlen);
 
+/**
+ * @path made absolute against the current directory (a leading "./"
+ * dropped), malloc'd; an absolute path is copied. NULL when out of memory
+ * or the current directory cannot be read.
+ */
+char *rl_path_absolute(const char *path);
+
 /** Create directory @path and its missing parents (mode 0777 & ~umask). */
 bool rl_mkdir_p(const char *path);
 

@@ -11,8 +11,9 @@
  */
 #include "srv.h"
 
-#include "log.h"
 #include "config.h"
+#include "fileutil.h"
+#include "log.h"
 
 #include <cjson/cJSON.h>
 #include <errno.h>
@@ -67,7 +68,7 @@ void srv_send(struct srv *s, struct srv_client *c, struct srv_frame *f)
 	if (r != SENDQ_OK) {
 		rl_log(RL_LOG_WARN, "client %llu: send queue over %zu bytes of replies it does not "
 		       "read: cut off", (unsigned long long)c->id, c->q.limit);
-		c->cut_off = true;
+		c->cut_off = c->overflow = true;
 	}
 	/* Replies go out at once; tiles come in batches that wake the service once. */
 	if (!f->binary)
@@ -618,7 +619,7 @@ static int on_writeable(struct srv *s, struct srv_client *c, struct lws *wsi)
 				 sizeof(reason) - 1);
 		return -1;
 	}
-	if (c->cut_off && c->q.text_bytes > c->q.limit / 2) {
+	if (c->overflow) {
 		/* Cut off for not reading: nothing more goes out. */
 		pthread_mutex_unlock(&s->lock);
 		lws_close_reason(wsi, LWS_CLOSE_STATUS_POLICY_VIOLATION, NULL, 0);
@@ -770,21 +771,15 @@ static void lws_to_log(int level, const char *line)
 /* Make the folder @path (@cap bytes) absolute; it need not exist. */
 static bool absolute(char *path, size_t cap)
 {
-	if (path[0] == '/' || !path[0])
+	if (!path[0])
 		return true;
-	char cwd[4096];
-	if (!getcwd(cwd, sizeof(cwd)))
-		return false;
-	size_t n = strlen(cwd) + strlen(path) + 2;
-	char *joined = malloc(n);
-	if (!joined)
-		return false;
-	snprintf(joined, n, "%s/%s", cwd, path);
-	bool fits = strlen(joined) < cap;
+	char *abs = rl_path_absolute(path);
+	bool fits = abs && strlen(abs) < cap;
 	if (fits)
-		memcpy(path, joined, strlen(joined) + 1);
-	free(joined);
-	errno = fits ? 0 : ENAMETOOLONG;
+		memcpy(path, abs, strlen(abs) + 1);
+	else if (abs)
+		errno = ENAMETOOLONG;
+	free(abs);
 	return fits;
 }
 

@@ -35,7 +35,8 @@ struct srv_client {
 	enum proto_format format;
 	struct sendq q;
 	struct srv_frame *inflight; /* written; freed at the next WRITEABLE (deflate keeps a pointer) */
-	bool cut_off;              /* close at the next WRITEABLE (queue over its bound) */
+	bool cut_off;              /* close once what is queued has gone out */
+	bool overflow;             /* its replies passed the queue's bound: close at once */
 	char *rx;                  /* a message being reassembled from fragments */
 	size_t rxlen, rxcap;
 	bool rx_binary, rx_too_big;

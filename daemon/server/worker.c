@@ -13,6 +13,7 @@
  */
 #include "srv.h"
 
+#include "fileutil.h"
 #include "log.h"
 #include "runtime.h"
 #include "shotfile.h"
@@ -24,7 +25,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <time.h>
 
 /* ---- jobs ---- */
@@ -265,17 +265,11 @@ static bool apply_set(struct gpu_shot *g, const struct srv_job *j, char *err, si
 	return true;
 }
 
-/* Which error code a refusal of the runtime's means (its messages name the cause). */
+/* The code of a refused parameter (the light was checked already): a name the
+ * shader lacks, or a value it does not take. */
 static enum proto_error_code code_of(const char *err)
 {
-	if (strstr(err, "no light") || strstr(err, "unknown light") || strstr(err, "no such light"))
-		return PROTO_E_UNKNOWN_LIGHT;
-	if (strstr(err, "has no parameter") || strstr(err, "no parameter") ||
-	    strstr(err, "unknown parameter"))
-		return PROTO_E_UNKNOWN_PARAM;
-	if (strstr(err, "no shader") || strstr(err, "not found"))
-		return PROTO_E_UNKNOWN_PARAM;
-	return PROTO_E_RANGE;
+	return strstr(err, "has no parameter") ? PROTO_E_UNKNOWN_PARAM : PROTO_E_RANGE;
 }
 
 static bool apply_job(struct srv *s, struct srv_shot *sh, const struct srv_job *j, char *err,
@@ -321,9 +315,7 @@ static bool apply_job(struct srv *s, struct srv_shot *sh, const struct srv_job *
 		}
 		ok = gpu_shot_add_light(g, j->light, j->shader, NULL, err, errlen) >= 0;
 		if (!ok) {
-			*code = PROTO_E_UNKNOWN_PARAM;
-			if (strstr(err, "shader"))
-				*code = PROTO_E_UNKNOWN_PARAM;
+			*code = PROTO_E_UNKNOWN_PARAM;   /* a shader neither the shot nor the path has */
 			return false;
 		}
 		if (j->nparams && !apply_set(g, j, err, errlen)) {
@@ -499,26 +491,33 @@ static bool read_level(struct gpu_shot *g, int level, struct images *im, bool ne
 	return true;
 }
 
+/* A level's frames: its tiles per format and the "level" message after them. */
+struct level_frames {
+	struct srv_frame **tiles[3];   /* by enum proto_format */
+	size_t count[3];
+	struct srv_frame *done;
+};
+
 /*
- * Send level @level of edit @edit (read into @im) to the clients that show
- * @sh, or to client @only alone when it is not 0. Lock held.
+ * Cut level @level of edit @edit (read into @im) into tiles for the formats
+ * asked for, and make its message; @t0 > 0 marks the first tile for the
+ * latency histogram. No lock needed: the frames are not shared yet.
  */
-static void send_level(struct srv *s, struct srv_shot *sh, const struct images *im,
-		       bool need8, bool need16, uint32_t edit, int level, double ms, double t0,
-		       uint64_t only)
+static void level_build(struct srv *s, const struct srv_shot *sh, const struct images *im,
+			bool need8, bool need16, uint32_t edit, int level, double ms, double t0,
+			struct level_frames *out)
 {
-	struct srv_frame **tiles[3] = { NULL };
-	size_t count[3] = { 0 };
+	memset(out, 0, sizeof(*out));
 	uint32_t ts = s->cfg.tile_size;
 	if (need8)
-		tiles[PROTO_RGBA8] = make_tiles(im, PROTO_RGBA8, edit, (uint32_t)level, ts,
-						&count[PROTO_RGBA8]);
+		out->tiles[PROTO_RGBA8] = make_tiles(im, PROTO_RGBA8, edit, (uint32_t)level, ts,
+						     &out->count[PROTO_RGBA8]);
 	if (need16)
-		tiles[PROTO_RGBA16F] = make_tiles(im, PROTO_RGBA16F, edit, (uint32_t)level, ts,
-						  &count[PROTO_RGBA16F]);
+		out->tiles[PROTO_RGBA16F] = make_tiles(im, PROTO_RGBA16F, edit, (uint32_t)level, ts,
+						       &out->count[PROTO_RGBA16F]);
 	for (int f = 1; f <= 2; f++)
-		if (t0 > 0 && count[f])
-			tiles[f][0]->t0 = t0;
+		if (t0 > 0 && out->count[f])
+			out->tiles[f][0]->t0 = t0;
 	cJSON *o = cJSON_CreateObject();
 	cJSON_AddStringToObject(o, "op", "level");
 	cJSON_AddStringToObject(o, "shot", sh->name);
@@ -527,23 +526,33 @@ static void send_level(struct srv *s, struct srv_shot *sh, const struct images *
 	cJSON_AddNumberToObject(o, "ms", ms);
 	char *msg = cJSON_PrintUnformatted(o);
 	cJSON_Delete(o);
-	struct srv_frame *lv = msg ? srv_frame_text(msg, strlen(msg)) : NULL;
+	out->done = msg ? srv_frame_text(msg, strlen(msg)) : NULL;
 	free(msg);
+}
+
+/* Queue @lf for the clients that show @sh, or client @only alone when it is not 0. Lock held. */
+static void level_post(struct srv *s, const struct srv_shot *sh, const struct level_frames *lf,
+		       uint64_t only)
+{
 	for (struct srv_client *c = s->clients; c; c = c->next) {
 		if (c->shot != sh || (only && c->id != only))
 			continue;
-		for (size_t i = 0; i < count[c->format]; i++)
-			srv_send(s, c, tiles[c->format][i]);
-		if (lv)
-			srv_send(s, c, lv);
+		for (size_t i = 0; i < lf->count[c->format]; i++)
+			srv_send(s, c, lf->tiles[c->format][i]);
+		if (lf->done)
+			srv_send(s, c, lf->done);
 	}
-	for (int f = 1; f <= 2; f++) {
-		for (size_t i = 0; i < count[f]; i++)
-			srv_frame_unref(tiles[f][i]);
-		free(tiles[f]);
-	}
-	srv_frame_unref(lv);
 	srv_kick(s);
+}
+
+static void level_free(struct level_frames *lf)
+{
+	for (int f = 1; f <= 2; f++) {
+		for (size_t i = 0; i < lf->count[f]; i++)
+			srv_frame_unref(lf->tiles[f][i]);
+		free(lf->tiles[f]);
+	}
+	srv_frame_unref(lf->done);
 }
 
 /* Which formats the clients showing @sh need (lock held). */
@@ -568,7 +577,7 @@ static void write_snapshot(struct srv *s, struct srv_shot *sh, const struct srv_
 	char path[4096 + 256], err[256] = "";
 	bool ok = gpu_shot_render(sh->gpu, GPU_SHOT_FINAL, &st) &&
 		  read_level(sh->gpu, GPU_SHOT_FINAL, im, false, true);
-	if (ok && mkdir(s->cfg.snapshot_dir, 0755) && errno != EEXIST) {
+	if (ok && !rl_mkdir_p(s->cfg.snapshot_dir)) {
 		snprintf(err, sizeof(err), "cannot make the snapshot folder: %s", strerror(errno));
 		ok = false;
 	}
@@ -651,6 +660,9 @@ static void do_open(struct srv *s, struct srv_shot *sh, const struct srv_job *j,
 	struct gpu_shot_stats st = { 0 };
 	bool have = done && gpu_shot_render(sh->gpu, GPU_SHOT_FINAL, &st) &&
 		    read_level(sh->gpu, GPU_SHOT_FINAL, im, need8, need16);
+	struct level_frames lf = { 0 };
+	if (have)
+		level_build(s, sh, im, need8, need16, edit, GPU_SHOT_FINAL, st.ms, 0, &lf);
 	pthread_mutex_lock(&s->lock);
 	struct srv_client *c = srv_client_find(s, j->client);
 	if (c) {
@@ -658,10 +670,11 @@ static void do_open(struct srv *s, struct srv_shot *sh, const struct srv_job *j,
 		c->format = j->format;
 		srv_send_json(s, c, o);
 		if (have && sh->edit == edit)
-			send_level(s, sh, im, need8, need16, edit, GPU_SHOT_FINAL, st.ms, 0, c->id);
+			level_post(s, sh, &lf, c->id);
 	}
 	sh->used = ++s->clock;
 	pthread_mutex_unlock(&s->lock);
+	level_free(&lf);
 	cJSON_Delete(o);
 }
 
@@ -677,7 +690,6 @@ static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struc
 {
 	char err[1024];
 	if (!sh->gpu) {
-		make_room(s, NULL);
 		if (!shot_load(s, sh, err, sizeof(err))) {
 			rl_log(RL_LOG_ERROR, "%s", err);
 			reply_error(s, j, PROTO_E_INTERNAL, err);
@@ -802,8 +814,11 @@ static void *worker_main(void *arg)
 		pthread_mutex_unlock(&s->lock);
 
 		struct gpu_shot_stats st = { 0 };
+		struct level_frames lf = { 0 };
 		bool ok = gpu_shot_render(sh->gpu, level, &st) &&
 			  read_level(sh->gpu, level, &im, need8, need16);
+		if (ok)
+			level_build(s, sh, &im, need8, need16, edit, level, st.ms, t0, &lf);
 		pthread_mutex_lock(&s->lock);
 		if (!ok) {
 			diag_log(sh, RL_LOG_ERROR);
@@ -815,11 +830,12 @@ static void *worker_main(void *arg)
 		if (sh->jobs && level + 1 < GPU_SHOT_LEVELS)
 			atomic_fetch_add(&s->metrics.preempted, 1);
 		if (sh->edit == edit && sh->next_level == level) {
-			send_level(s, sh, &im, need8, need16, edit, level, st.ms, t0, 0);
+			level_post(s, sh, &lf, 0);
 			sh->next_level = level + 1;
 			if (level == 0)
 				sh->edit_t0 = 0;
 		}
+		level_free(&lf);
 	}
 	pthread_mutex_unlock(&s->lock);
 
