@@ -30,6 +30,18 @@ bool cmd_parse_uint(const char *s, uint32_t max, uint32_t *out);
 /** A finite decimal number in [@min, @max] (nothing after it). */
 bool cmd_parse_double(const char *s, double min, double max, double *out);
 
+/**
+ * A light edit LIGHT.PARAM=V[,V...] (the argument of --set in 'relight
+ * preview' and 'relight render'): 1 to 16 numbers parsed as floats (NaN and
+ * infinities are accepted here; the light's parameter decides). @arg is
+ * modified: *@light and *@param point into it. The last '.' before the '='
+ * splits LIGHT from PARAM, so a light's name may hold dots. False when the
+ * '=', the '.', LIGHT, PARAM or a number is missing, a number is malformed or
+ * beyond the float range, or there are more than 16.
+ */
+bool cmd_parse_light_edit(char *arg, const char **light, const char **param, float values[16],
+			  uint32_t *n);
+
 /** The default shader search path: $RELIGHT_SHADER_PATH, then the project's library. */
 void cmd_shader_path(char *buf, size_t size);
 

@@ -1,4 +1,7 @@
-/* What the subcommands share: usage errors, numbers on the command line, the shader path. */
+/*
+ * What the subcommands share: usage errors, numbers on the command line,
+ * light edits (--set), the shader path.
+ */
 #include "cmd.h"
 #include "config.h"
 
@@ -6,6 +9,7 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 int cmd_usage_error(const char *cmd, const char *fmt, ...)
 {
@@ -39,6 +43,37 @@ bool cmd_parse_double(const char *s, double min, double max, double *out)
 		return false;
 	*out = v;
 	return true;
+}
+
+/* LIGHT.PARAM=V[,V...]: the last '.' before the '=' ends LIGHT, ',' separates the numbers. */
+bool cmd_parse_light_edit(char *arg, const char **light, const char **param, float values[16],
+			  uint32_t *n)
+{
+	char *eq = strchr(arg, '=');
+	if (!eq)
+		return false;
+	*eq = '\0';
+	char *dot = strrchr(arg, '.');
+	if (!dot || dot == arg || !dot[1])
+		return false;
+	*dot = '\0';
+	*light = arg;
+	*param = dot + 1;
+	*n = 0;
+	char *p = eq + 1;
+	for (;;) {
+		char *end;
+		errno = 0;
+		float v = strtof(p, &end);
+		if (end == p || errno == ERANGE || *n == 16)
+			return false;
+		values[(*n)++] = v;
+		if (*end == '\0')
+			return true;
+		if (*end != ',')
+			return false;
+		p = end + 1;
+	}
 }
 
 void cmd_shader_path(char *buf, size_t size)

@@ -13,7 +13,6 @@
 #include "shotfile.h"
 #include "texture.h"
 
-#include <errno.h>
 #include <getopt.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -74,36 +73,6 @@ static void usage(FILE *out)
 }
 
 #define usage_error(...) cmd_usage_error("preview", __VA_ARGS__)
-
-/* LIGHT.PARAM=V[,V...] into @e (pointing into @arg, which it modifies). */
-static bool parse_edit(char *arg, struct resolve_edit *e)
-{
-	char *eq = strchr(arg, '=');
-	if (!eq)
-		return false;
-	*eq = '\0';
-	char *dot = strrchr(arg, '.');
-	if (!dot || dot == arg || !dot[1])
-		return false;
-	*dot = '\0';
-	e->light = arg;
-	e->param = dot + 1;
-	e->nvalues = 0;
-	char *p = eq + 1;
-	for (;;) {
-		char *end;
-		errno = 0;
-		float v = strtof(p, &end);
-		if (end == p || errno == ERANGE || e->nvalues == 16)
-			return false;
-		e->values[e->nvalues++] = v;
-		if (*end == '\0')
-			return true;
-		if (*end != ',')
-			return false;
-		p = end + 1;
-	}
-}
 
 static char *default_output(const char *shot)
 {
@@ -270,7 +239,9 @@ int cmd_preview(int argc, char **argv)
 				return usage_error("--set '%.40s...' is too long", optarg);
 			memset(&edits[nedits], 0, sizeof(edits[nedits]));
 			strcpy(copies[nedits], optarg);
-			if (!parse_edit(copies[nedits], &edits[nedits]))
+			if (!cmd_parse_light_edit(copies[nedits], &edits[nedits].light,
+						  &edits[nedits].param, edits[nedits].values,
+						  &edits[nedits].nvalues))
 				return usage_error("--set needs LIGHT.PARAM=V[,V,...] with up to 16 "
 						   "numbers, not '%s'", optarg);
 			nedits++;

@@ -16,6 +16,8 @@
 #include <string.h>
 #include <unistd.h>
 
+enum { MAX_EDITS = 64, MAX_EDIT_LEN = 256 };
+
 static void usage(FILE *out)
 {
 	fprintf(out,
@@ -32,6 +34,15 @@ static void usage(FILE *out)
 		"  --crop X0 X1 Y0 Y1     Render only pixels X0 <= x < X1, Y0 <= y < Y1 (others\n"
 		"                         stay empty); overrides the scene's CropWindow\n"
 		"  --bucket N             Bucket size in pixels (default 16)\n"
+		"  --set LIGHT.PARAM=V[,V,V]\n"
+		"                         Edit a light: LIGHT is its name (the RIB handle, as\n"
+		"                         'relight info' lists them), PARAM one of its shader's\n"
+		"                         parameters; one value for a float (or a grey colour),\n"
+		"                         three for a colour, point or vector (points and\n"
+		"                         vectors in the light's own space, as in the RIB),\n"
+		"                         sixteen for a matrix. Repeatable (up to %d). The\n"
+		"                         value replaces the one the scene gives, in every\n"
+		"                         frame, as 'relight preview --set' edits a shot\n"
 		"  -q, --quiet            No progress bar and no summary\n"
 		"  -h, --help             Show this help and exit\n"
 		"\n"
@@ -41,8 +52,9 @@ static void usage(FILE *out)
 		"gives the time, the micropolygons shaded, the subpixel samples and the peak memory.\n"
 		"\n"
 		"Exit status: 0 on success, 1 when the scene has errors (reported as\n"
-		"FILE:LINE: error: MESSAGE) or an image cannot be written, 2 on a usage error.\n",
-		RELIGHT_SOURCE_SHADER_DIR);
+		"FILE:LINE: error: MESSAGE; a --set edit that does not fit its light is one)\n"
+		"or an image cannot be written, 2 on a usage error.\n",
+		MAX_EDITS, RELIGHT_SOURCE_SHADER_DIR);
 }
 
 #define usage_error(...) cmd_usage_error("render", __VA_ARGS__)
@@ -80,12 +92,16 @@ int cmd_render(int argc, char **argv)
 {
 	struct render_job job = { 0 };
 	const char *output = NULL;
+	struct reyes_light_edit edits[MAX_EDITS];
+	char copies[MAX_EDITS][MAX_EDIT_LEN];
+	uint32_t nedits = 0;
 	static const struct option long_opts[] = {
 		{ "help", no_argument, NULL, 'h' },
 		{ "output", required_argument, NULL, 'o' },
 		{ "threads", required_argument, NULL, 't' },
 		{ "crop", required_argument, NULL, 'c' },
 		{ "bucket", required_argument, NULL, 'b' },
+		{ "set", required_argument, NULL, 's' },
 		{ "quiet", no_argument, NULL, 'q' },
 		{ NULL, 0, NULL, 0 },
 	};
@@ -129,6 +145,21 @@ int cmd_render(int argc, char **argv)
 			job.ro.crop_y1 = v[3];
 			break;
 		}
+		case 's':
+			/* the same checks and messages as relight preview --set */
+			if (nedits == MAX_EDITS)
+				return usage_error("at most %d --set edits", MAX_EDITS);
+			if (strlen(optarg) >= MAX_EDIT_LEN)
+				return usage_error("--set '%.40s...' is too long", optarg);
+			memset(&edits[nedits], 0, sizeof(edits[nedits]));
+			strcpy(copies[nedits], optarg);
+			if (!cmd_parse_light_edit(copies[nedits], &edits[nedits].light,
+						  &edits[nedits].param, edits[nedits].values,
+						  &edits[nedits].nvalues))
+				return usage_error("--set needs LIGHT.PARAM=V[,V,...] with up to 16 "
+						   "numbers, not '%s'", optarg);
+			nedits++;
+			break;
 		case 'q':
 			job.quiet = true;
 			break;
@@ -158,6 +189,8 @@ int cmd_render(int argc, char **argv)
 		.default_shader_path = shader_path,
 		.default_texture_path = ".",
 		.output_override = output,
+		.light_edits = edits,
+		.nlight_edits = nedits,
 		.frame = on_frame,
 		.user = &job,
 	};

@@ -1498,17 +1498,103 @@ static void set_light(struct ri *ri, uint32_t index, bool on)
 	attrs_changed(ri);
 }
 
+/*
+ * Check an edit of light shader @sh's parameters and apply it: the value
+ * of @e->param replaces the one the request gave (or joins the list).
+ * @vals has room for sh->nparams plus one entry per edit.
+ */
+static bool apply_light_edit(struct ri *ri, const struct rib_request *r,
+			     const struct reyes_light_edit *e, struct reyes_shader *sh,
+			     struct reyes_param_value *vals)
+{
+	const struct sl_program *prog = sh->prog;
+	int k = sl_program_find_param(prog, e->param);
+	if (k < 0 || prog->params[k].output) {
+		reyes_ri_err(ri, r->loc, "--set %s.%s: shader '%s' has no parameter '%s'", e->light,
+			     e->param, sh->name, e->param);
+		return false;
+	}
+	const struct sl_param *sp = &prog->params[k];
+	uint32_t nc = (uint32_t)sl_type_ncomp(sp->type.base);
+	if (sp->type.base == SL_TYPE_STRING || sp->type.arraylen >= 0 || nc == 0) {
+		reyes_ri_err(ri, r->loc, "--set %s.%s: parameter '%s' of shader '%s' is a %s%s; only "
+			     "float, colour, point, vector, normal and matrix parameters can be "
+			     "edited", e->light, e->param, e->param, sh->name,
+			     sl_basetype_name(sp->type.base), sp->type.arraylen >= 0 ? " array" : "");
+		return false;
+	}
+	/* One value stands for a grey colour, as in the preview. */
+	bool grey = e->nvalues == 1 && sp->type.base == SL_TYPE_COLOR;
+	if (!grey && e->nvalues != nc) {
+		reyes_ri_err(ri, r->loc, "--set %s.%s: parameter '%s' of shader '%s' is a %s and "
+			     "takes %u value%s, not %u", e->light, e->param, e->param, sh->name,
+			     sl_basetype_name(sp->type.base), nc, nc == 1 ? "" : "s", e->nvalues);
+		return false;
+	}
+	float *f = rl_arena_alloc(ri->world, sizeof(float) * nc);
+	for (uint32_t c = 0; c < nc; c++) {
+		f[c] = e->values[grey ? 0 : c];
+		if (!isfinite(f[c])) {
+			reyes_ri_err(ri, r->loc, "--set %s.%s: parameter '%s' needs finite values, "
+				     "not %g", e->light, e->param, e->param, (double)f[c]);
+			return false;
+		}
+	}
+	uint32_t i = 0;
+	while (i < sh->nparams && strcmp(vals[i].name, sp->name) != 0)
+		i++;
+	vals[i] = (struct reyes_param_value){.name = sp->name, .type = sp->type.base,
+					     .nvalues = nc, .values = f};
+	if (i == sh->nparams)
+		sh->nparams++;
+	return true;
+}
+
+/* The edits of the light @handle, after its request's own parameters. */
+static void apply_light_edits(struct ri *ri, const struct rib_request *r, const char *handle,
+			      struct reyes_shader *sh)
+{
+	const struct reyes_ri_opts *o = ri->opts;
+	struct reyes_param_value *vals = NULL;
+	for (uint32_t i = 0; i < o->nlight_edits; i++) {
+		const struct reyes_light_edit *e = &o->light_edits[i];
+		if (strcmp(e->light, handle) != 0)
+			continue;
+		if (!vals) {
+			/* the request's list is shared with nothing else yet, but is
+			   const; the edited list is a copy with room to grow */
+			vals = rl_arena_alloc(ri->world,
+					      sizeof(*vals) * (sh->nparams + o->nlight_edits));
+			if (sh->nparams)
+				memcpy(vals, sh->params, sizeof(*vals) * sh->nparams);
+			sh->params = vals;
+		}
+		apply_light_edit(ri, r, e, sh, vals);
+	}
+}
+
+/* Marks the edits of light @handle as having found their light. */
+static void note_light_handle(struct ri *ri, const char *handle)
+{
+	for (uint32_t i = 0; i < ri->opts->nlight_edits; i++)
+		if (strcmp(ri->opts->light_edits[i].light, handle) == 0)
+			ri->edit_seen[i] = true;
+}
+
 static void req_light_source(struct ri *ri, const struct rib_request *r)
 {
 	if (ri->objdef >= 0)
 		FAIL(ri, r->loc, "LightSource inside an object definition");
-	struct reyes_shader *sh = make_shader(ri, r, SL_SHADER_LIGHT);
-	if (!sh)
-		return;
+	/* The handle first: an edit of a light whose shader fails has found its light. */
 	const char *handle = r->nargs > 1 ? reyes_ri_handle_arg(ri, r, 1, ri->world)
 					  : rl_arena_printf(ri->world, "%zu", ri->lights.len + 1);
 	if (!handle)
 		return;
+	note_light_handle(ri, handle);
+	struct reyes_shader *sh = make_shader(ri, r, SL_SHADER_LIGHT);
+	if (!sh)
+		return;
+	apply_light_edits(ri, r, handle, sh);
 	uint32_t index = (uint32_t)ri->lights.len;
 	struct reyes_light l = {.shader = *sh, .handle = handle, .default_on = true,
 				.index = index};
@@ -1861,65 +1947,86 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 	static const struct reyes_ri_opts no_opts = {0};
 	if (!opts)
 		opts = &no_opts;
-	struct ri ri = {
+	for (uint32_t i = 0; i < opts->nlight_edits; i++)
+		if (!opts->light_edits[i].light || !opts->light_edits[i].param) {
+			rib_error(opts->diag, (struct rib_loc){path, 0},
+				  "light edit %u names no light or no parameter", i + 1);
+			if (nerrors)
+				*nerrors = 1;
+			return false;
+		}
+	struct ri state = {
 		.opts = opts,
 		.diag = opts->diag ? opts->diag : stderr,
 		.max_errors = opts->max_errors > 0 ? opts->max_errors : 20,
 		.perm = rl_arena_create(),
 		.objdef = -1,
+		.edit_seen = rl_xcalloc(opts->nlight_edits + 1, sizeof(bool)),
 	};
-	ri.rdiag = open_memstream(&ri.rbuf, &ri.rlen);
+	struct ri *ri = &state;
+	ri->rdiag = open_memstream(&ri->rbuf, &ri->rlen);
 	const char *sp = opts->default_shader_path;
 	if (!sp || !*sp)
-		ri.default_shader_path = RELIGHT_SOURCE_SHADER_DIR;
+		ri->default_shader_path = RELIGHT_SOURCE_SHADER_DIR;
 	else if (path_ends_with(sp, RELIGHT_SOURCE_SHADER_DIR))
-		ri.default_shader_path = rl_arena_strdup(ri.perm, sp);
+		ri->default_shader_path = rl_arena_strdup(ri->perm, sp);
 	else
-		ri.default_shader_path = rl_arena_printf(ri.perm, "%s:%s", sp,
+		ri->default_shader_path = rl_arena_printf(ri->perm, "%s:%s", sp,
 							 RELIGHT_SOURCE_SHADER_DIR);
-	ri.default_texture_path = opts->default_texture_path && *opts->default_texture_path
-					  ? rl_arena_strdup(ri.perm, opts->default_texture_path)
+	ri->default_texture_path = opts->default_texture_path && *opts->default_texture_path
+					  ? rl_arena_strdup(ri->perm, opts->default_texture_path)
 					  : ".";
-	options_init(&ri, &ri.opt);
-	attrs_init(&ri.gs.a);
-	xform_init(&ri.gs.x);
+	options_init(ri, &ri->opt);
+	attrs_init(&ri->gs.a);
+	xform_init(&ri->gs.x);
 
 	struct stat st;
 	bool have_st = path && stat(path, &st) == 0;
-	bool read_ok = read_file(&ri, path, have_st ? &st : NULL);
+	bool read_ok = read_file(ri, path, have_st ? &st : NULL);
 
 	/* Blocks left open when the read stopped early: unwind without rendering. */
-	while (ri.blocks.len)
-		pop_block(&ri, false);
-	forward_reader_diag(&ri);
+	while (ri->blocks.len)
+		pop_block(ri, false);
+	forward_reader_diag(ri);
 
-	int total = ri.nerrors + ri.reader_errors;
+	/* An edit of a light the scene never declares is a mistake, not a no-op
+	   (unless the read stopped before it could know). */
+	for (uint32_t i = 0; have_st && !ri->stop && i < opts->nlight_edits; i++) {
+		const struct reyes_light_edit *e = &opts->light_edits[i];
+		if (!ri->edit_seen[i])
+			reyes_ri_err(ri, (struct rib_loc){path, 0},
+				     "--set %s.%s: no LightSource with handle %s", e->light, e->param,
+				     e->light);
+	}
+
+	int total = ri->nerrors + ri->reader_errors;
 	if (nerrors)
 		*nerrors = total;
 
-	for (size_t i = 0; i < ri.objects.len; i++)
-		rl_vec_free(ri.objects.data[i].prims);
-	rl_vec_free(ri.objects);
-	rl_vec_free(ri.blocks);
-	rl_vec_free(ri.files);
-	rl_vec_free(ri.pre_spaces);
-	rl_vec_free(ri.lights);
-	rl_vec_free(ri.prims);
-	rl_vec_free(ri.spaces);
-	strmap_free(&ri.decls);
-	strmap_free(&ri.shader_cache);
-	strmap_free(&ri.pre_space_index);
-	strmap_free(&ri.outer_object_index);
-	strmap_free(&ri.world_object_index);
-	strmap_free(&ri.light_index);
-	strmap_free(&ri.space_index);
-	for (size_t i = 0; i < ri.progs.len; i++)
-		sl_program_destroy(ri.progs.data[i]);
-	rl_vec_free(ri.progs);
-	if (ri.rdiag)
-		fclose(ri.rdiag);
-	free(ri.rbuf);
-	rl_arena_destroy(ri.world);
-	rl_arena_destroy(ri.perm);
+	for (size_t i = 0; i < ri->objects.len; i++)
+		rl_vec_free(ri->objects.data[i].prims);
+	rl_vec_free(ri->objects);
+	rl_vec_free(ri->blocks);
+	rl_vec_free(ri->files);
+	rl_vec_free(ri->pre_spaces);
+	rl_vec_free(ri->lights);
+	rl_vec_free(ri->prims);
+	rl_vec_free(ri->spaces);
+	strmap_free(&ri->decls);
+	strmap_free(&ri->shader_cache);
+	strmap_free(&ri->pre_space_index);
+	strmap_free(&ri->outer_object_index);
+	strmap_free(&ri->world_object_index);
+	strmap_free(&ri->light_index);
+	strmap_free(&ri->space_index);
+	for (size_t i = 0; i < ri->progs.len; i++)
+		sl_program_destroy(ri->progs.data[i]);
+	rl_vec_free(ri->progs);
+	if (ri->rdiag)
+		fclose(ri->rdiag);
+	free(ri->rbuf);
+	rl_arena_destroy(ri->world);
+	rl_arena_destroy(ri->perm);
+	free(ri->edit_seen);
 	return read_ok && total == 0;
 }

@@ -14,6 +14,21 @@
 #include "rib.h"
 #include "scene.h"
 
+/**
+ * An edit of a light's parameter, as 'relight preview --set' applies it to
+ * a shot (struct resolve_edit): every LightSource whose handle is @light
+ * gets @param set to @values, replacing the value the RIB gives, if any.
+ * The values are in the light's shader space, as the RIB would give them:
+ * one for a float, three for a colour, point, vector or normal (one value
+ * broadcasts to a colour's three), sixteen for a matrix.
+ */
+struct reyes_light_edit {
+	const char *light;             /* the RIB handle: "3", "key" */
+	const char *param;
+	float values[16];
+	uint32_t nvalues;
+};
+
 struct reyes_ri_opts {
 	FILE *diag;                    /* diagnostics, NULL: stderr */
 	int max_errors;                /* 0: 20 */
@@ -25,6 +40,16 @@ struct reyes_ri_opts {
 	const char *default_texture_path;
 	/** Replace the file name of the frame's first image display (relight render -o). */
 	const char *output_override;
+	/**
+	 * Light edits applied at each LightSource request of every frame, in
+	 * order, after its parameter list (NULL when nlight_edits is 0; owned
+	 * by the caller). An edit of a parameter the light's shader lacks, of
+	 * a string or array parameter, with the wrong number of values or a
+	 * value that is not finite is an error at that request; an edit whose
+	 * light no LightSource declares is an error at the end of the read.
+	 */
+	const struct reyes_light_edit *light_edits;
+	uint32_t nlight_edits;
 	/**
 	 * Called at each WorldEnd with the finished scene (owned by the builder,
 	 * valid during the call). Return false to stop (an error was reported).

@@ -205,6 +205,7 @@ struct ri {
 	int reader_errors;
 	int frame_errors;         /* in the frame being built */
 	bool stop;
+	bool *edit_seen;          /* per opts->light_edits: a LightSource had its handle */
 
 	/* The reader's diagnostics pass through a memory stream, so that its
 	   errors can hold back the frame they occur in. */
