@@ -66,4 +66,7 @@ int cmd_info(int argc, char **argv);
 /** `relight preview`: relight a shot file headless (the CPU reference with --cpu). */
 int cmd_preview(int argc, char **argv);
 
+/* relight bench: speed against error on the examples, the stability suite, a report. */
+int cmd_bench(int argc, char **argv);
+
 #endif

@@ -6,6 +6,8 @@
  * values; optionally as a heat map PNG.
  */
 #include "cmd.h"
+#include "imgerr.h"
+#include "plot.h"
 #include "png.h"
 #include "texture.h"
 
@@ -17,16 +19,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-/* The heat map's colour at 0, 1/5, 2/5, ... 5/5 of the scale. */
-static const uint8_t ramp[6][3] = {
-	{ 0, 0, 0 },            /* black */
-	{ 0, 0, 255 },          /* blue */
-	{ 0, 255, 0 },          /* green */
-	{ 255, 255, 0 },        /* yellow */
-	{ 255, 0, 0 },          /* red */
-	{ 255, 255, 255 },      /* white */
-};
 
 static void usage(FILE *out)
 {
@@ -91,21 +83,6 @@ static bool parse_pct(const char *s, double lo, bool lo_open, double *out)
 	return true;
 }
 
-/* The errors over one group of channels (R, G, B; or A). */
-struct stats {
-	uint64_t samples;               /* values compared */
-	double sum_lin2;                /* sum of squared linear differences */
-	double sum_enc, sum_enc2;       /* sums of |encoded a - encoded b| and its square */
-	double max_enc;                 /* the largest per-pixel error */
-	uint32_t max_x, max_y;
-	uint64_t over_1pct;             /* pixels whose error exceeds 0.01 */
-	uint64_t nonfinite[2];          /* non-finite values in A and in B */
-	double max_rel;                 /* the largest relative difference of linear values */
-};
-
-/* Values under this are compared absolutely by the relative difference. */
-#define REL_FLOOR 1e-3
-
 static int find_channel(const struct reyes_image *im, const char *name)
 {
 	for (uint32_t c = 0; c < im->nchannels; c++)
@@ -114,92 +91,34 @@ static int find_channel(const struct reyes_image *im, const char *name)
 	return -1;
 }
 
-static float clamp01(float v)
+/*
+ * Compare channels @ca of @a with @cb of @b (@n of them), through the sRGB
+ * transfer when @srgb.
+ */
+static void measure(const struct reyes_image *a, const struct reyes_image *b, const int *ca,
+		    const int *cb, int n, bool srgb, struct img_error *e)
 {
-	return v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f;
-}
-
-/* A heat map pixel for error @e (a fraction of the range) with @scale at the ramp's top. */
-static void heat_colour(double e, double scale, uint8_t out[3])
-{
-	double t = e / scale * 5.0;
-	if (!(t > 0.0))
-		t = 0.0;
-	if (t >= 5.0)
-		t = 5.0;
-	int i = t >= 5.0 ? 4 : (int)t;
-	double f = t - i;
-	for (int c = 0; c < 3; c++)
-		out[c] = (uint8_t)lrint(ramp[i][c] + f * (ramp[i + 1][c] - ramp[i][c]));
+	img_error_measure(a->data, a->nchannels, ca, b->data, b->nchannels, cb, n, a->width,
+			  a->height, srgb, NULL, e);
 }
 
 /*
- * Compare channels @ca of @a with @cb of @b (@n of them), through the sRGB
- * transfer when @srgb. With @heat, also fill it with the heat map.
+ * The heat map of the colour channels, @scale (a fraction of the range) at
+ * the ramp's top. Each pixel is measured alone so that its colour comes from
+ * its exact error, not from the rounded float of an error map: the PNG stays
+ * the same, byte for byte, as the one relight diff has always written.
  */
-static void measure(const struct reyes_image *a, const struct reyes_image *b, const int *ca,
-		    const int *cb, int n, bool srgb, uint8_t *heat, double scale,
-		    struct stats *s)
+static void heat_map(const struct reyes_image *a, const struct reyes_image *b, const int *ca,
+		     const int *cb, int n, double scale, uint8_t *heat)
 {
-	memset(s, 0, sizeof(*s));
-	for (uint32_t y = 0; y < a->height; y++) {
-		for (uint32_t x = 0; x < a->width; x++) {
-			size_t px = (size_t)y * a->width + x;
-			const float *pa = a->data + px * a->nchannels;
-			const float *pb = b->data + px * b->nchannels;
-			double pixel = 0.0;
-			for (int k = 0; k < n; k++) {
-				float va = pa[ca[k]], vb = pb[cb[k]];
-				double lin, enc;
-				bool fa = isfinite(va), fb = isfinite(vb);
-				if (!fa || !fb) {
-					s->nonfinite[0] += !fa;
-					s->nonfinite[1] += !fb;
-					lin = enc = 1.0;
-				} else {
-					lin = (double)va - (double)vb;
-					double m = fmax(fmax(fabs((double)va), fabs((double)vb)),
-							REL_FLOOR);
-					if (fabs(lin) / m > s->max_rel)
-						s->max_rel = fabs(lin) / m;
-					enc = srgb ? fabs((double)reyes_srgb_encode(va) -
-							  (double)reyes_srgb_encode(vb))
-						   : fabs((double)clamp01(va) - (double)clamp01(vb));
-				}
-				s->sum_lin2 += lin * lin;
-				s->sum_enc += enc;
-				s->sum_enc2 += enc * enc;
-				if (enc > pixel)
-					pixel = enc;
-			}
-			s->samples += (uint64_t)n;
-			if (pixel > s->max_enc) {
-				s->max_enc = pixel;
-				s->max_x = x;
-				s->max_y = y;
-			}
-			s->over_1pct += pixel > 0.01;
-			if (heat)
-				heat_colour(pixel, scale, heat + 3 * px);
-		}
+	size_t npx = (size_t)a->width * a->height;
+	for (size_t p = 0; p < npx; p++) {
+		struct img_error e;
+		img_error_measure(a->data + p * a->nchannels, a->nchannels, ca,
+				  b->data + p * b->nchannels, b->nchannels, cb, n, 1, 1, true, NULL,
+				  &e);
+		plot_ramp(e.max_enc / scale, heat + 3 * p);
 	}
-}
-
-static double rmse(const struct stats *s)
-{
-	return s->samples ? sqrt(s->sum_lin2 / (double)s->samples) : 0.0;
-}
-
-static double mean_pct(const struct stats *s)
-{
-	return s->samples ? 100.0 * s->sum_enc / (double)s->samples : 0.0;
-}
-
-/* The PSNR in dB (peak 1), or NAN when there is no error at all. */
-static double psnr_db(const struct stats *s)
-{
-	double mse = s->samples ? s->sum_enc2 / (double)s->samples : 0.0;
-	return mse > 0.0 ? -10.0 * log10(mse) : NAN;
 }
 
 /* A JSON number; null for what JSON cannot hold. */
@@ -225,16 +144,16 @@ static void json_string(FILE *out, const char *s)
 	fputc('"', out);
 }
 
-static void json_stats(FILE *out, const struct stats *s)
+static void json_stats(FILE *out, const struct img_error *s)
 {
 	fputs("\"rmse\": ", out);
-	json_number(out, rmse(s));
+	json_number(out, img_error_rmse(s));
 	fputs(", \"mean_pct\": ", out);
-	json_number(out, mean_pct(s));
+	json_number(out, img_error_mean_pct(s));
 	fputs(", \"max_pct\": ", out);
-	json_number(out, 100.0 * s->max_enc);
+	json_number(out, img_error_max_pct(s));
 	fputs(", \"psnr_db\": ", out);
-	json_number(out, psnr_db(s));
+	json_number(out, img_error_psnr_db(s));
 	fprintf(out, ", \"max_at\": [%" PRIu32 ", %" PRIu32 "], \"over_1pct\": %" PRIu64
 		", \"nonfinite\": [%" PRIu64 ", %" PRIu64 "]",
 		s->max_x, s->max_y, s->over_1pct, s->nonfinite[0], s->nonfinite[1]);
@@ -247,7 +166,7 @@ struct report {
 	uint32_t width, height;
 	const char *channels[3];
 	int nchannels;
-	struct stats colour, alpha;
+	struct img_error colour, alpha;
 	bool has_alpha;
 	const char *alpha_only;         /* the one image with an alpha channel, or NULL */
 	const char *heatmap;
@@ -286,19 +205,19 @@ static void print_json(FILE *out, const struct report *r)
 
 static void print_text(FILE *out, const struct report *r)
 {
-	const struct stats *s = &r->colour;
+	const struct img_error *s = &r->colour;
 	uint64_t pixels = (uint64_t)r->width * r->height;
 	fprintf(out, "%s vs %s: %" PRIu32 "x%" PRIu32 ", channels", r->path_a, r->path_b,
 		r->width, r->height);
 	for (int k = 0; k < r->nchannels; k++)
 		fprintf(out, " %s", r->channels[k]);
 	fputc('\n', out);
-	fprintf(out, "  RMSE (linear)      %.6g\n", rmse(s));
+	fprintf(out, "  RMSE (linear)      %.6g\n", img_error_rmse(s));
 	fprintf(out, "  max relative       %.3g (linear)\n", s->max_rel);
-	fprintf(out, "  mean error         %.4f %% of the 8-bit range (sRGB)\n", mean_pct(s));
+	fprintf(out, "  mean error         %.4f %% of the 8-bit range (sRGB)\n", img_error_mean_pct(s));
 	fprintf(out, "  max error          %.4f %% at pixel (%" PRIu32 ", %" PRIu32 ")\n",
-		100.0 * s->max_enc, s->max_x, s->max_y);
-	double p = psnr_db(s);
+		img_error_max_pct(s), s->max_x, s->max_y);
+	double p = img_error_psnr_db(s);
 	if (isfinite(p))
 		fprintf(out, "  PSNR (sRGB)        %.2f dB\n", p);
 	else
@@ -310,10 +229,10 @@ static void print_text(FILE *out, const struct report *r)
 			"(each an error of 100 %%)\n", s->nonfinite[0], r->path_a,
 			s->nonfinite[1], r->path_b);
 	if (r->has_alpha) {
-		const struct stats *a = &r->alpha;
+		const struct img_error *a = &r->alpha;
 		fprintf(out, "  alpha              RMSE %.6g, mean %.4f %%, max %.4f %% at (%" PRIu32
-			", %" PRIu32 "), %" PRIu64 " pixels over 1%%", rmse(a), mean_pct(a),
-			100.0 * a->max_enc, a->max_x, a->max_y, a->over_1pct);
+			", %" PRIu32 "), %" PRIu64 " pixels over 1%%", img_error_rmse(a),
+			img_error_mean_pct(a), img_error_max_pct(a), a->max_x, a->max_y, a->over_1pct);
 		if (a->nonfinite[0] || a->nonfinite[1])
 			fprintf(out, ", %" PRIu64 " + %" PRIu64 " non-finite", a->nonfinite[0],
 				a->nonfinite[1]);
@@ -453,9 +372,11 @@ int cmd_diff(int argc, char **argv)
 			goto done;
 		}
 	}
-	measure(&a, &b, ca, cb, r.nchannels, true, heat, scale / 100.0, &r.colour);
+	measure(&a, &b, ca, cb, r.nchannels, true, &r.colour);
 	if (r.has_alpha)
-		measure(&a, &b, &aa, &ab, 1, false, NULL, 1.0, &r.alpha);
+		measure(&a, &b, &aa, &ab, 1, false, &r.alpha);
+	if (heat)
+		heat_map(&a, &b, ca, cb, r.nchannels, scale / 100.0, heat);
 
 	status = CMD_OK;
 	if (heat && !reyes_png_write(heatmap, heat, r.width, r.height, 3, stderr)) {
@@ -466,7 +387,7 @@ int cmd_diff(int argc, char **argv)
 		print_json(stdout, &r);
 	else
 		print_text(stdout, &r);
-	double max_pct = 100.0 * r.colour.max_enc;
+	double max_pct = img_error_max_pct(&r.colour);
 	if (fail_above >= 0.0 && max_pct > fail_above) {
 		fprintf(stderr, "relight diff: the maximum error, %.4f %%, is above --fail-above "
 			"%g %%\n", max_pct, fail_above);

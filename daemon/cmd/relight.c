@@ -24,6 +24,7 @@ static const struct command commands[] = {
 	{ "preview", cmd_preview, "Relight a shot file and write the image (--cpu: the reference)" },
 	{ "diff", cmd_diff, "Compare two rendered images: errors, PSNR, a heat map" },
 	{ "remote", cmd_remote, "Drive a running relightd: scripted edits, snapshots, stats" },
+	{ "bench", cmd_bench, "Measure speed against error on the examples; the stability suite" },
 };
 
 static const size_t ncommands = sizeof(commands) / sizeof(commands[0]);

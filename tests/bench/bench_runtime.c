@@ -29,6 +29,7 @@
 #include "microbench.h"
 #include "png.h"
 #include "runtime.h"
+#include "scenes.h"
 #include "texture.h"
 
 #include <math.h>
@@ -52,45 +53,6 @@ static double median(double *v, int n)
 {
 	qsort(v, (size_t)n, sizeof(double), cmp_double);
 	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-/* The scene: a ground, 8 x 4 spheres of three surface shaders, @nlights lights. */
-static void write_scene(const char *path, int nlights, float spot_intensity)
-{
-	FILE *f = fopen(path, "w");
-	if (!f)
-		return;
-	fprintf(f, "Format 960 540 1\nPixelSamples 2 2\nShadingRate 1\n"
-		"Projection \"perspective\" \"fov\" 40\n"
-		"Display \"street.exr\" \"file\" \"rgba\"\n"
-		"Translate 0 -1.2 9\nRotate -12 1 0 0\nWorldBegin\n");
-	fprintf(f, "  LightSource \"spotlight\" 1 \"intensity\" %g \"from\" [1 6 2] \"to\" [0 0 5]"
-		" \"coneangle\" 0.6 \"conedeltaangle\" 0.1\n", (double)spot_intensity);
-	for (int i = 2; i <= nlights; i++) {
-		double a = 2.0 * 3.14159265 * i / nlights;
-		if (i == 2)
-			fprintf(f, "  LightSource \"ambientlight\" 2 \"intensity\" 0.03\n");
-		else if (i == 3)
-			fprintf(f, "  LightSource \"distantlight\" 3 \"intensity\" 0.3 \"from\" [0 1 0]"
-				" \"to\" [0.3 0 0.4]\n");
-		else
-			fprintf(f, "  LightSource \"pointlight\" %d \"intensity\" 0.6 \"from\" [%.3f %.3f"
-				" %.3f] \"lightcolor\" [%.2f %.2f %.2f]\n", i, 6 * cos(a), 1.5 + i % 3,
-				5 + 6 * sin(a), 0.6 + 0.4 * (i % 2), 0.7, 0.6 + 0.4 * (i % 3 == 0));
-	}
-	fprintf(f, "  AttributeBegin\n    Surface \"matte\"\n    Color [0.6 0.6 0.55]\n"
-		"    Polygon \"P\" [-12 0 -4  -12 0 20  12 0 20  12 0 -4]\n  AttributeEnd\n");
-	static const char *const surf[3] = { "plastic\" \"roughness\" 0.12",
-					     "metal\" \"roughness\" 0.2", "matte\"" };
-	for (int z = 0; z < 4; z++)
-		for (int x = 0; x < 8; x++)
-			fprintf(f, "  AttributeBegin\n    Surface \"%s\n    Color [%.2f %.2f %.2f]\n"
-				"    Translate %.2f 0.5 %.2f\n    Sphere 0.5 -0.5 0.5 360\n"
-				"  AttributeEnd\n", surf[(x + z) % 3], 0.3 + 0.1 * (x % 5),
-				0.3 + 0.15 * (z % 3), 0.4 + 0.07 * ((x + z) % 4), -4.2 + 1.2 * x,
-				1.5 + 2.2 * z);
-	fprintf(f, "WorldEnd\n");
-	fclose(f);
 }
 
 static double now_ms(void)
@@ -137,10 +99,13 @@ static bool shot_open(struct gpu_ctx *ctx, const char *relight, const char *dir,
 {
 	memset(r, 0, sizeof(*r));
 	r->nlights = nlights;
-	char cmd[4096], rib[1024], shot[1024];
+	char cmd[4096], rib[1024], shot[1024], err[512];
 	snprintf(rib, sizeof(rib), "%s/street%d.rib", dir, nlights);
 	snprintf(shot, sizeof(shot), "%s/street%d.shot.exr", dir, nlights);
-	write_scene(rib, nlights, 40.0f);
+	if (!bench_street_rib(rib, 960, 540, nlights, nlights, 40.0f, err, sizeof(err))) {
+		fprintf(stderr, "bench_runtime: %s\n", err);
+		return false;
+	}
 	struct stat st;
 	if (stat(shot, &st) != 0) {
 		fprintf(stderr, "bench_runtime: baking %s\n", rib);
@@ -211,7 +176,8 @@ static bool shot_finish(const char *relight, const char *dir, struct result *r)
 		char edited[1024], ref[1024];
 		snprintf(edited, sizeof(edited), "%s/street%d.edited.rib", dir, nlights);
 		snprintf(ref, sizeof(ref), "%s/street%d.edited.exr", dir, nlights);
-		write_scene(edited, nlights, v);
+		if (!bench_street_rib(edited, 960, 540, nlights, nlights, v, err, sizeof(err)))
+			fprintf(stderr, "bench_runtime: %s\n", err);
 		snprintf(cmd, sizeof(cmd), "cd %s && %s render -q -o %s %s", dir, relight, ref,
 			 edited);
 		struct reyes_image im;
