@@ -8,6 +8,7 @@
  * children (each call waits only for its own) and SIGPIPE (see latency.h).
  */
 #include "latency.h"
+#include "benchutil.h"
 
 #include "remote.h"
 
@@ -80,31 +81,6 @@ static void say(char *buf, size_t len, const char *fmt, ...)
 }
 
 /* ---- statistics ---- */
-
-static int cmp_double(const void *a, const void *b)
-{
-	double x = *(const double *)a, y = *(const double *)b;
-	return x < y ? -1 : x > y;
-}
-
-/* Sorts @v. */
-static double median(double *v, int n)
-{
-	if (n <= 0)
-		return NAN;
-	qsort(v, (size_t)n, sizeof(double), cmp_double);
-	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-/* The 99th percentile, nearest rank. Sorts @v. */
-static double p99(double *v, int n)
-{
-	if (n <= 0)
-		return NAN;
-	qsort(v, (size_t)n, sizeof(double), cmp_double);
-	int k = (int)ceil(0.99 * n);
-	return v[(k < 1 ? 1 : k) - 1];
-}
 
 bool latency_meets_targets(const struct latency_row *r)
 {
@@ -844,11 +820,11 @@ static bool measure(struct run *r, struct remote *rm, const struct target *t, st
 					vlat[nv++] = vw->first[k] - t0s[i];
 			}
 		}
-		row->median = median(lat, n);
-		row->p99 = p99(lat, n);
-		row->final_median = median(fin, n);
-		row->viewer_median = median(vlat, nv);
-		row->viewer_p99 = p99(vlat, nv);
+		row->median = bench_median(lat, n);
+		row->p99 = bench_p99(lat, n);
+		row->final_median = bench_median(fin, n);
+		row->viewer_median = bench_median(vlat, nv);
+		row->viewer_p99 = bench_p99(vlat, nv);
 	}
 	free(lat);
 	free(fin);

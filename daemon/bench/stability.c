@@ -12,6 +12,7 @@
  * GPU checks are skipped with a note and the others still run.
  */
 #include "stability.h"
+#include "benchutil.h"
 
 #include "bake.h"
 #include "bake/resolve.h"
@@ -335,34 +336,7 @@ static float *render_rib(struct suite *s, const char *rib, const char *exr, uint
 			 job.frames);
 		return NULL;
 	}
-	struct reyes_image im = { 0 };
-	if (!reyes_image_read_exr(exr, &im, s->log)) {
-		snprintf(why, wlen, "cannot read the rendered image %s", exr);
-		return NULL;
-	}
-	float *rgba = NULL;
-	int ch[4] = { -1, -1, -1, -1 };
-	static const char *const names[4] = { "R", "G", "B", "A" };
-	for (uint32_t c = 0; c < im.nchannels; c++)
-		for (int k = 0; k < 4; k++)
-			if (!strcmp(im.channel_names[c], names[k]))
-				ch[k] = (int)c;
-	if (im.width != w || im.height != h || ch[0] < 0 || ch[1] < 0 || ch[2] < 0 || ch[3] < 0) {
-		snprintf(why, wlen, "%s: %ux%u without RGBA, expected %ux%u RGBA", exr, im.width,
-			 im.height, w, h);
-		goto done;
-	}
-	rgba = calloc((size_t)w * h * 4, sizeof(float));
-	if (!rgba) {
-		snprintf(why, wlen, "out of memory");
-		goto done;
-	}
-	for (size_t p = 0; p < (size_t)w * h; p++)
-		for (int k = 0; k < 4; k++)
-			rgba[p * 4 + (size_t)k] = im.data[p * im.nchannels + (size_t)ch[k]];
-done:
-	reyes_image_finish(&im);
-	return rgba;
+	return bench_read_rgba_exr(exr, w, h, true, s->log, why, wlen);
 }
 
 /* Bake WORKDIR/@name.rib (@rib) to WORKDIR/@name.shot.exr (@shot). */

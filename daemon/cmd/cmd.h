@@ -42,6 +42,14 @@ bool cmd_parse_double(const char *s, double min, double max, double *out);
 bool cmd_parse_light_edit(char *arg, const char **light, const char **param, float values[16],
 			  uint32_t *n);
 
+/**
+ * The --set option of command @cmd ("render", "preview"): @arg copied into
+ * @copy (@cap bytes, which the caller keeps: *@light and *@param point into
+ * it) and parsed by cmd_parse_light_edit. CMD_OK, or the usage error, printed.
+ */
+int cmd_set_option(const char *cmd, const char *arg, char *copy, size_t cap, const char **light,
+		   const char **param, float values[16], uint32_t *n);
+
 /** The default shader search path: $RELIGHT_SHADER_PATH, then the project's library. */
 void cmd_shader_path(char *buf, size_t size);
 

@@ -12,6 +12,7 @@
  * the terminal, to JSON, and with --out to a Markdown report with plots.
  */
 #include "cmd.h"
+#include "benchutil.h"
 #include "config.h"
 #include "fileutil.h"
 #include "gpu.h"
@@ -221,20 +222,6 @@ static double now_s(void)
 	return (double)t.tv_sec + (double)t.tv_nsec * 1e-9;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-	double x = *(const double *)a, y = *(const double *)b;
-	return x < y ? -1 : x > y;
-}
-
-static double median(double *v, int n)
-{
-	if (n <= 0)
-		return NAN;
-	qsort(v, (size_t)n, sizeof(double), cmp_double);
-	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 /* ---- files and processes ---- */
 
 static bool is_dir(const char *path)
@@ -356,38 +343,6 @@ static void log_reason(const char *log, char *out, size_t cap)
 			fmtf(out, cap, "%s (%s)", line, log);
 		}
 	fclose(f);
-}
-
-/* Read an EXR's R, G, B, A into a width x height x 4 array (A 1 when absent). */
-static float *read_rgba_exr(const char *path, uint32_t w, uint32_t h, char *why, size_t cap)
-{
-	struct reyes_image im;
-	FILE *diag = fmemopen(why, cap, "w");
-	bool ok = reyes_image_read_exr(path, &im, diag ? diag : stderr);
-	if (diag)
-		fclose(diag);
-	if (!ok)
-		return NULL;
-	int ch[4] = { -1, -1, -1, -1 };
-	static const char *const names[4] = { "R", "G", "B", "A" };
-	for (uint32_t c = 0; c < im.nchannels; c++)
-		for (int k = 0; k < 4; k++)
-			if (im.channel_names[c] && !strcmp(im.channel_names[c], names[k]))
-				ch[k] = (int)c;
-	float *rgba = NULL;
-	if (im.width != w || im.height != h || ch[0] < 0 || ch[1] < 0 || ch[2] < 0) {
-		fmtf(why, cap, "%s: %ux%u with%s R, G, B; the shot is %ux%u", path, im.width,
-			 im.height, ch[0] < 0 || ch[1] < 0 || ch[2] < 0 ? "out" : "", w, h);
-	} else {
-		size_t px = (size_t)w * h;
-		rgba = malloc(px * 4 * sizeof(float));
-		for (size_t i = 0; rgba && i < px; i++)
-			for (int k = 0; k < 4; k++)
-				rgba[i * 4 + k] = ch[k] >= 0 ? im.data[i * im.nchannels + (size_t)ch[k]]
-							     : 1.0f;
-	}
-	reyes_image_finish(&im);
-	return rgba;
 }
 
 /* ---- the examples ---- */
@@ -615,11 +570,11 @@ static void bench_example(struct bench *b, const char *name)
 	if (ok) {
 		double cum = 0.0;
 		for (int L = 0; L < LEVELS; L++) {
-			r->lv[L].ms = median(lv[L], E);
+			r->lv[L].ms = bench_median(lv[L], E);
 			cum += r->lv[L].ms;
 			r->lv[L].cum_ms = cum;
 		}
-		r->edit_ms = median(tot, E);
+		r->edit_ms = bench_median(tot, E);
 	}
 	/* every level against the render of the RIB edited the same way */
 	float *img[LEVELS] = { NULL }, *maps[LEVELS] = { NULL }, *ref = NULL;
@@ -632,7 +587,7 @@ static void bench_example(struct bench *b, const char *name)
 			log_reason(log, msg, sizeof(msg));
 			ok = false;
 		} else {
-			ref = read_rgba_exr(path, r->width, r->height, msg, sizeof(msg));
+			ref = bench_read_rgba_exr(path, r->width, r->height, false, NULL, msg, sizeof(msg));
 			ok = ref != NULL;
 		}
 	}
@@ -751,8 +706,8 @@ static bool time_edits(struct gpu_shot *s, int E, double out[LEVELS], double *to
 		}
 	}
 	for (int L = 0; L < LEVELS; L++)
-		out[L] = median(lv[L], E);
-	*total = median(tot, E);
+		out[L] = bench_median(lv[L], E);
+	*total = bench_median(tot, E);
 	return true;
 }
 
@@ -828,8 +783,9 @@ static void bench_light_counts(struct bench *b)
 		if (bench_street_rib(crib, b->count_w, b->count_h, c->lights, ring, 60.0f, err,
 				     sizeof(err)) &&
 		    run_self(b, dir, clog, rargv) >= 0) {
-			float *ref = read_rgba_exr(cexr, (uint32_t)b->count_w, (uint32_t)b->count_h,
-						   err, sizeof(err));
+			float *ref = bench_read_rgba_exr(cexr, (uint32_t)b->count_w,
+							 (uint32_t)b->count_h, false, NULL, err,
+							 sizeof(err));
 			if (ref) {
 				img_error_rgba(cached, ref, (uint32_t)b->count_w,
 					       (uint32_t)b->count_h, NULL, &ie);
@@ -1303,7 +1259,10 @@ static void write_markdown(FILE *f, const struct bench *b, const cJSON *j)
 		"with `relight render --set` of the same edit, as `relight diff` measures: RMSE of the\n"
 		"linear values; mean and maximum absolute error of the displayed (sRGB) values in\n"
 		"percent of the 8-bit range; PSNR of the displayed values. The coarse levels' errors\n"
-		"are their honest cost: edges stay blocky until the final level.\n\n");
+		"are their honest cost: edges stay blocky until the final level. \"Samples shaded\"\n"
+		"counts what each level's step shades: a level shades only the samples the coarser\n"
+		"levels did not. relightd's final level is the same image, bit for bit, as the\n"
+		"runtime's (`tests/cli/remote.sh`), so its latency rows carry these errors too.\n\n");
 
 	fprintf(f, "## Summary\n\n| example | image | lights | samples | render s | bake s | level 0 ms "
 		"| level 0 mean / max %% | final ms | final mean / max %% | latency ms (median, 1 "

@@ -82,3 +82,15 @@ void cmd_shader_path(char *buf, size_t size)
 	snprintf(buf, size, "%s%s%s", env ? env : "", env && *env ? ":" : "",
 		 RELIGHT_SOURCE_SHADER_DIR);
 }
+
+int cmd_set_option(const char *cmd, const char *arg, char *copy, size_t cap, const char **light,
+		   const char **param, float values[16], uint32_t *n)
+{
+	if (strlen(arg) >= cap)
+		return cmd_usage_error(cmd, "--set '%.40s...' is too long", arg);
+	memcpy(copy, arg, strlen(arg) + 1);
+	if (!cmd_parse_light_edit(copy, light, param, values, n))
+		return cmd_usage_error(cmd, "--set needs LIGHT.PARAM=V[,V,...] with up to 16 "
+				       "numbers, not '%s'", arg);
+	return CMD_OK;
+}

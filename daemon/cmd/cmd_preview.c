@@ -235,15 +235,14 @@ int cmd_preview(int argc, char **argv)
 		case 's':
 			if (nedits == MAX_EDITS)
 				return usage_error("at most %d --set edits", MAX_EDITS);
-			if (strlen(optarg) >= MAX_EDIT_LEN)
-				return usage_error("--set '%.40s...' is too long", optarg);
 			memset(&edits[nedits], 0, sizeof(edits[nedits]));
-			strcpy(copies[nedits], optarg);
-			if (!cmd_parse_light_edit(copies[nedits], &edits[nedits].light,
-						  &edits[nedits].param, edits[nedits].values,
-						  &edits[nedits].nvalues))
-				return usage_error("--set needs LIGHT.PARAM=V[,V,...] with up to 16 "
-						   "numbers, not '%s'", optarg);
+			{
+				int rc = cmd_set_option("preview", optarg, copies[nedits], MAX_EDIT_LEN,
+							&edits[nedits].light, &edits[nedits].param,
+							edits[nedits].values, &edits[nedits].nvalues);
+				if (rc != CMD_OK)
+					return rc;
+			}
 			nedits++;
 			break;
 		case 'o':

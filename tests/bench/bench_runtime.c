@@ -25,7 +25,9 @@
  * at every level; kernels >= half the arithmetic rate. The figures are
  * printed, not asserted: machines here are noisy.
  */
+#include "benchutil.h"
 #include "gpu.h"
+#include "imgerr.h"
 #include "microbench.h"
 #include "png.h"
 #include "runtime.h"
@@ -43,18 +45,6 @@
 #define EDITS 9
 #define LEVELS GPU_SHOT_LEVELS
 
-static int cmp_double(const void *a, const void *b)
-{
-	double x = *(const double *)a, y = *(const double *)b;
-	return x < y ? -1 : x > y;
-}
-
-static double median(double *v, int n)
-{
-	qsort(v, (size_t)n, sizeof(double), cmp_double);
-	return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 static double now_ms(void)
 {
 	struct timespec t;
@@ -62,19 +52,14 @@ static double now_ms(void)
 	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
 }
 
-/* Mean and max of |srgb(a) - srgb(b)| in percent of the range, over RGB. */
-static void image_error(const float *a, const float *b, size_t pixels, double *mean, double *max)
+/* Mean and max of |srgb(a) - srgb(b)| in percent of the range, over RGB (as relight diff). */
+static void image_error(const float *a, const float *b, uint32_t w, uint32_t h, double *mean,
+			double *max)
 {
-	double sum = 0.0, m = 0.0;
-	for (size_t i = 0; i < pixels; i++)
-		for (int c = 0; c < 3; c++) {
-			double d = fabs((double)reyes_srgb_encode(a[i * 4 + c]) -
-					(double)reyes_srgb_encode(b[i * 4 + c]));
-			sum += d;
-			m = d > m ? d : m;
-		}
-	*mean = 100.0 * sum / (3.0 * (double)pixels);
-	*max = 100.0 * m;
+	struct img_error e;
+	img_error_rgba(a, b, w, h, NULL, &e);
+	*mean = img_error_mean_pct(&e);
+	*max = img_error_max_pct(&e);
 }
 
 struct result {
@@ -160,8 +145,8 @@ static bool shot_finish(const char *relight, const char *dir, struct result *r)
 	float v = r->v;
 	bool ok = true;
 	for (int L = 0; L < LEVELS; L++)
-		r->level_ms[L] = median(r->lv[L], EDITS);
-	r->total_ms = median(r->tot, EDITS);
+		r->level_ms[L] = bench_median(r->lv[L], EDITS);
+	r->total_ms = bench_median(r->tot, EDITS);
 	/* errors: each level against the final level, the final level against the renderer */
 	uint32_t W = gpu_shot_width(s), H = gpu_shot_height(s);
 	size_t px = (size_t)W * H;
@@ -171,7 +156,7 @@ static bool shot_finish(const char *relight, const char *dir, struct result *r)
 		ok = ok && img[L] && gpu_shot_read_rgba(s, L, img[L]);
 	}
 	for (int L = 0; ok && L < LEVELS; L++)
-		image_error(img[L], img[LEVELS - 1], px, &r->err_mean[L], &r->err_max[L]);
+		image_error(img[L], img[LEVELS - 1], W, H, &r->err_mean[L], &r->err_max[L]);
 	if (ok) {
 		char edited[1024], ref[1024];
 		snprintf(edited, sizeof(edited), "%s/street%d.edited.rib", dir, nlights);
@@ -180,31 +165,14 @@ static bool shot_finish(const char *relight, const char *dir, struct result *r)
 			fprintf(stderr, "bench_runtime: %s\n", err);
 		snprintf(cmd, sizeof(cmd), "cd %s && %s render -q -o %s %s", dir, relight, ref,
 			 edited);
-		struct reyes_image im;
-		if (system(cmd) == 0 && reyes_image_read_exr(ref, &im, stderr)) {
-			/* the file's channels in RGBA order */
-			int ch[4] = { -1, -1, -1, -1 };
-			static const char *const names[4] = { "R", "G", "B", "A" };
-			for (uint32_t c = 0; c < im.nchannels; c++)
-				for (int k = 0; k < 4; k++)
-					if (im.channel_names[c] && !strcmp(im.channel_names[c], names[k]))
-						ch[k] = (int)c;
-			if (im.width == W && im.height == H && ch[0] >= 0 && ch[1] >= 0 && ch[2] >= 0) {
-				float *ref_rgba = malloc(px * 4 * sizeof(float));
-				for (size_t i = 0; ref_rgba && i < px; i++)
-					for (int k = 0; k < 4; k++)
-						ref_rgba[i * 4 + k] =
-							ch[k] >= 0 ? im.data[i * im.nchannels + (size_t)ch[k]]
-								   : 1.0f;
-				if (ref_rgba)
-					image_error(img[LEVELS - 1], ref_rgba, px, &r->render_mean,
-						    &r->render_max);
-				free(ref_rgba);
-			}
-			reyes_image_finish(&im);
-		} else {
+		float *ref_rgba = system(cmd) == 0
+					  ? bench_read_rgba_exr(ref, W, H, false, NULL, err, sizeof(err))
+					  : NULL;
+		if (ref_rgba)
+			image_error(img[LEVELS - 1], ref_rgba, W, H, &r->render_mean, &r->render_max);
+		else
 			r->render_mean = r->render_max = NAN;
-		}
+		free(ref_rgba);
 	}
 	for (int L = 0; L < LEVELS; L++)
 		free(img[L]);
