@@ -236,26 +236,6 @@ static bool is_file(const char *path)
 	return stat(path, &st) == 0 && S_ISREG(st.st_mode);
 }
 
-static bool copy_file(const char *from, const char *to)
-{
-	FILE *in = fopen(from, "rb");
-	if (!in)
-		return false;
-	FILE *out = fopen(to, "wb");
-	if (!out) {
-		fclose(in);
-		return false;
-	}
-	char buf[65536];
-	size_t n;
-	bool ok = true;
-	while ((n = fread(buf, 1, sizeof(buf), in)) > 0)
-		ok = ok && fwrite(buf, 1, n, out) == n;
-	ok = ok && !ferror(in);
-	fclose(in);
-	return fclose(out) == 0 && ok;
-}
-
 /* Copy the plain files of folder @from into @to (made if needed): an example's RIB and assets. */
 static bool copy_folder(const char *from, const char *to)
 {
@@ -273,31 +253,10 @@ static bool copy_folder(const char *from, const char *to)
 		fmtf(a, sizeof(a), "%s/%s", from, e->d_name);
 		fmtf(z, sizeof(z), "%s/%s", to, e->d_name);
 		if (is_file(a))
-			ok = copy_file(a, z);
+			ok = rl_copy_file(a, z);
 	}
 	closedir(d);
 	return ok;
-}
-
-static void remove_tree(const char *dir)
-{
-	DIR *d = opendir(dir);
-	if (d) {
-		struct dirent *e;
-		while ((e = readdir(d))) {
-			if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-				continue;
-			char p[PATH_MAX];
-			fmtf(p, sizeof(p), "%s/%s", dir, e->d_name);
-			struct stat st;
-			if (lstat(p, &st) == 0 && S_ISDIR(st.st_mode))
-				remove_tree(p);
-			else
-				unlink(p);
-		}
-		closedir(d);
-	}
-	rmdir(dir);
 }
 
 /*
@@ -1731,7 +1690,7 @@ int cmd_bench(int argc, char **argv)
 	if (b->ctx)
 		gpu_destroy(b->ctx);
 	if (own_work && !b->failed)
-		remove_tree(c->work);
+		rl_remove_tree(c->work);
 	else if (own_work)
 		fprintf(stderr, "relight bench: the work folder is kept for its logs: %s\n", c->work);
 	if (b->failed)

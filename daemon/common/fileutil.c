@@ -2,9 +2,11 @@
 #include "fileutil.h"
 #include "arena.h"
 
+#include <dirent.h>
 #include <errno.h>
 #include <pthread.h>
 #include <fcntl.h>
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -344,4 +346,66 @@ void rl_hash128_hex(const struct rl_hash128 *h, char out[33])
 {
 	uint64_t a = mix64(h->a ^ mix64(h->len)), b = mix64(h->b ^ a);
 	snprintf(out, 33, "%016llx%016llx", (unsigned long long)a, (unsigned long long)b);
+}
+
+bool rl_copy_file(const char *from, const char *to)
+{
+	int in = open(from, O_RDONLY | O_CLOEXEC);
+	if (in < 0)
+		return false;
+	int out = open(to, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+	if (out < 0) {
+		int e = errno;
+		close(in);
+		errno = e;
+		return false;
+	}
+	char buf[65536];
+	bool ok = true;
+	off_t at = 0;
+	for (;;) {
+		ssize_t n = read(in, buf, sizeof(buf));
+		if (n < 0 && errno == EINTR)
+			continue;
+		if (n <= 0) {
+			ok = n == 0;
+			break;
+		}
+		int werr = rl_pwrite_all(out, buf, (size_t)n, at);
+		if (werr) {
+			errno = werr;
+			ok = false;
+			break;
+		}
+		at += n;
+	}
+	int e = errno;
+	close(in);
+	if (close(out) != 0)
+		ok = false;
+	else
+		errno = e;
+	return ok;
+}
+
+void rl_remove_tree(const char *dir)
+{
+	DIR *d = opendir(dir);
+	if (d) {
+		struct dirent *e;
+		while ((e = readdir(d))) {
+			if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
+				continue;
+			char p[PATH_MAX];
+			if (snprintf(p, sizeof(p), "%s/%s", dir, e->d_name) >= (int)sizeof(p))
+				continue;
+			struct stat st;
+			if (lstat(p, &st) == 0 && S_ISDIR(st.st_mode))
+				rl_remove_tree(p);
+			else
+				unlink(p);
+		}
+		closedir(d);
+	}
+	rmdir(dir);
 }

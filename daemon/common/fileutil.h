@@ -71,6 +71,15 @@ char *rl_path_absolute(const char *path);
 /** Create directory @path and its missing parents (mode 0777 & ~umask). */
 bool rl_mkdir_p(const char *path);
 
+/** Copy the file @from to @to (created or truncated, mode 0644). False with errno set. */
+bool rl_copy_file(const char *from, const char *to);
+
+/**
+ * Remove @dir with everything below it (links are removed, not followed).
+ * Best effort: what cannot be removed stays.
+ */
+void rl_remove_tree(const char *dir);
+
 /**
  * relight's cache directory for @what (a subdirectory name such as "gl"),
  * malloc'd, created if missing: $RELIGHT_CACHE_DIR/@what, else

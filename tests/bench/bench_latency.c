@@ -28,6 +28,7 @@
  * The measurement itself is daemon/bench/latency.c (shared with `relight
  * bench`); this program bakes, prints and writes the JSON.
  */
+#include "fileutil.h"
 #include "latency.h"
 
 #include <dirent.h>
@@ -73,23 +74,6 @@ static bool run_in(const char *dir, char *const argv[])
 		if (errno != EINTR)
 			return false;
 	return WIFEXITED(st) && WEXITSTATUS(st) == 0;
-}
-
-static bool copy_file(const char *from, const char *to)
-{
-	int in = open(from, O_RDONLY), out = in < 0 ? -1 :
-		 open(to, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-	bool ok = in >= 0 && out >= 0;
-	char buf[65536];
-	ssize_t n;
-	while (ok && (n = read(in, buf, sizeof(buf))) != 0) {
-		ok = n > 0 && write(out, buf, (size_t)n) == n;
-	}
-	if (in >= 0)
-		close(in);
-	if (out >= 0 && close(out) != 0)
-		ok = false;
-	return ok;
 }
 
 static int cmp_str(const void *a, const void *b)
@@ -144,7 +128,7 @@ static bool bake_examples(const struct config *c, const char *shots, char **name
 			snprintf(path, sizeof(path), "%s/%s", dir, e->d_name);
 			snprintf(to, sizeof(to), "%s/%s", shots, e->d_name);
 			if (e->d_name[0] != '.' && stat(path, &st) == 0 && S_ISREG(st.st_mode))
-				ok = copy_file(path, to);
+				ok = rl_copy_file(path, to);
 		}
 		if (ed)
 			closedir(ed);
@@ -220,27 +204,6 @@ static void usage(FILE *out)
 {
 	fprintf(out, "usage: %s [--json FILE] [--shots DIR] [--edits N] [--viewers N]\n"
 		"                     [--param intensity|from] RELIGHT RELIGHTD EXAMPLES\n", prog);
-}
-
-/* Remove the temporary folder: its files, then it. */
-static void remove_tree(const char *dir)
-{
-	DIR *d = opendir(dir);
-	struct dirent *e;
-	char path[8192];
-	while (d && (e = readdir(d))) {
-		if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-			continue;
-		snprintf(path, sizeof(path), "%s/%s", dir, e->d_name);
-		struct stat st;
-		if (lstat(path, &st) == 0 && S_ISDIR(st.st_mode))
-			remove_tree(path);
-		else
-			unlink(path);
-	}
-	if (d)
-		closedir(d);
-	rmdir(dir);
 }
 
 /* @path made absolute (against the current folder) into @out; the program must exist. */
@@ -370,7 +333,7 @@ int main(int argc, char **argv)
 	status = ok ? 0 : 1;
 out:
 	if (have_tmp)
-		remove_tree(tmp);
+		rl_remove_tree(tmp);
 	for (int i = 0; i < nshots; i++)
 		free(names[i]);
 	free(rows);
