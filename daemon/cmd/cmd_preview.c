@@ -61,6 +61,8 @@ static void usage(FILE *out)
 		"                       (RGBA half floats) instead of float\n"
 		"  --json               Print timings and counts as one JSON object. On the GPU:\n"
 		"                       full_ms (every light, from nothing to the final level),\n"
+		"                       full_shaded and full_batched ((sample, light) pairs\n"
+		"                       shaded for it, and those shaded in batches of lights),\n"
 		"                       edit_ms (after the --set edits, levels 0 to 3 refined\n"
 		"                       in turn with the light cache warm), levels (per level:\n"
 		"                       ms, entries resolved, samples shaded, kernels run) and\n"
@@ -165,10 +167,11 @@ static int preview_gpu(const char *shot, const char *output, int level,
 	if (ok && json) {
 		printf("{\"device\": \"%s\", \"width\": %u, \"height\": %u, \"level\": %d, "
 		       "\"samples\": %llu, \"lights\": %u, \"gpu_bytes\": %zu, "
-		       "\"full_ms\": %.3f, \"full_shaded\": %llu, \"edit_ms\": %.3f, \"levels\": [",
+		       "\"full_ms\": %.3f, \"full_shaded\": %llu, \"full_batched\": %llu, "
+		       "\"edit_ms\": %.3f, \"levels\": [",
 		       gpu_renderer(ctx), w, h, level, (unsigned long long)gpu_shot_samples(s),
 		       gpu_shot_light_count(s), gpu_shot_bytes(s), full.ms,
-		       (unsigned long long)full.shaded, edit_ms);
+		       (unsigned long long)full.shaded, (unsigned long long)full.batched, edit_ms);
 		for (int L = 0; L < GPU_SHOT_LEVELS; L++)
 			printf("%s{\"level\": %d, \"ms\": %.3f, \"entries\": %llu, \"shaded\": %llu, "
 			       "\"dispatches\": %u}", L ? ", " : "", L, lv[L].ms,

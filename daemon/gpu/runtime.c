@@ -52,6 +52,14 @@
 #define MAX_ADDED_SHADERS 32
 #define NBANDS GPU_SHOT_LEVELS
 #define MAX_PARAM_FLOATS 4096
+/*
+ * Lights of one shader that enter the light cache together are shaded in
+ * passes of BATCH lights: one kernel reads each sample's record once and
+ * runs the surface with each light alone (sl_slice.per_light), and one
+ * accumulate adds their differences. A batch with fewer lights repeats its
+ * last light in the spare passes, which the accumulate leaves out.
+ */
+#define BATCH GPU_SHOT_BATCH
 
 static double now_ms(void)
 {
@@ -145,6 +153,7 @@ struct surface {
 	uint64_t nrows, id0;
 	struct kernel base;
 	struct kernel *lk;         /* per light shader */
+	struct kernel *bk;         /* per light shader: BATCH lights a pass each (prog NULL: none) */
 	struct gpu_buffer *records;
 	struct gpu_buffer *object; /* per row, as float */
 	RL_VEC(struct run) runs[NBANDS];
@@ -411,6 +420,40 @@ static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *la
 static const char accumulate_src[] = ACCUMULATE_SRC("float");
 static const char accumulate_d_src[] = ACCUMULATE_SRC("double");
 
+/*
+ * Where a batch kernel's passes go (sl_slice.sink): light k's colour less
+ * the base, for the first u_n passes, added to the light cache of sample
+ * u_id0 + row as the one-light accumulate adds it (lights of a batch reach
+ * every object and take no shadow weights, so link and weight are 1).
+ */
+static const char batch_sink[] =
+	"layout(binding = 1) uniform samplerBuffer u_base;\n"
+	"layout(std430, binding = 2) buffer Cache { double cache[]; };\n"
+	"uniform int u_id0;\n"
+	"uniform int u_n;\n"
+	"vec3 rl_base = vec3(0.0);\n"
+	"dvec3 rl_acc = dvec3(0.0);\n"
+	"void rl_sink(uint row, uint k, vec3 ci) {\n"
+	"	int id = (u_id0 + int(row)) * 3;\n"
+	"	if (k == 0u) {\n"
+	"		rl_base = vec3(texelFetch(u_base, id).x, texelFetch(u_base, id + 1).x,\n"
+	"			       texelFetch(u_base, id + 2).x);\n"
+	"		rl_acc = dvec3(cache[id], cache[id + 1], cache[id + 2]);\n"
+	"	}\n"
+	"	if (int(k) >= u_n) return;\n"
+	"	for (int c = 0; c < 3; c++) {\n"
+	"		precise float v = ci[c] - rl_base[c];\n"
+	"		v = isnan(v) || isinf(v) ? 0.0 : v * 1.0;\n"
+	"		precise double r = rl_acc[c] + double(v);\n"
+	"		rl_acc[c] = isnan(r) || isinf(r) ? 0.0 : r;\n"
+	"	}\n"
+	"}\n"
+	"void rl_sink_end(uint row) {\n"
+	"	int id = (u_id0 + int(row)) * 3;\n"
+	"	for (int c = 0; c < 3; c++)\n"
+	"		cache[id + c] = rl_acc[c];\n"
+	"}\n";
+
 /* Combine: colors = base + cache over ids [u_first, u_first + u_count). */
 static const char combine_src[] =
 	"#version 430 core\n"
@@ -585,6 +628,66 @@ static bool shade(struct gpu_shot *s, struct light *L, const struct lstate *st, 
 	       (!any_w || shade_pass(s, L, st, band, true, none, w, dst));
 }
 
+/*
+ * Can @L enter the light cache in a batch? Its shader has batch kernels,
+ * it reads no shadow map (so no shadow weights) and it reaches every object.
+ */
+static bool batchable(const struct gpu_shot *s, const struct light *L)
+{
+	if (!s->nsurfaces || L->nmaps)
+		return false;
+	for (uint32_t i = 0; i < s->nsurfaces; i++)
+		if (s->surfaces[i].nrows && !s->surfaces[i].bk[L->shader].prog)
+			return false;
+	/* (object ids stop at nobjects - 1; the last float is padding) */
+	for (uint32_t o = 0; o < s->nobjects; o++)
+		if (L->link_cpu[o] != 1.0f)
+			return false;
+	return true;
+}
+
+/*
+ * Add lights @ls[0 .. n) (2 <= n <= BATCH, one shader, each batchable) to
+ * the light cache over band @band: per surface and run, one dispatch of
+ * the batch kernel, which adds to the cache itself (batch_sink).
+ */
+static bool shade_batch(struct gpu_shot *s, struct light *const *ls, uint32_t n, int band)
+{
+	const struct sl_program *lp = s->lshaders[ls[0]->shader].prog;
+	for (uint32_t si = 0; si < s->nsurfaces; si++) {
+		struct surface *sf = &s->surfaces[si];
+		if (!sf->runs[band].len)
+			continue;
+		struct kernel *k = &sf->bk[ls[0]->shader];
+		for (uint32_t j = 0; j < BATCH; j++) {
+			const struct light *L = ls[j < n ? j : n - 1];
+			char name[32];
+			set_uniforms(k->prog, &k->layout, lp, &L->cur, (int)j);
+			snprintf(name, sizeof(name), "l%u_shader", j);
+			gpu_uniform_mat4(k->prog, name, L->to_camera);
+		}
+		gpu_uniform_mat4(k->prog, "space_world", s->w2c);
+		gpu_uniform_int(k->prog, "u_id0", (int)sf->id0);
+		gpu_uniform_int(k->prog, "u_n", (int)n);
+		struct gpu_binding b[3] = {
+			{ 0, false, sf->records, true }, { 1, false, s->base }, { 2, true, s->cache },
+		};
+		for (size_t r = 0; r < sf->runs[band].len; r++) {
+			const struct run *ru = &sf->runs[band].data[r];
+			if (sf->nparamsets && ru->paramset < sf->nparamsets)
+				set_uniforms(k->prog, &k->layout, sf->spec->dynamic,
+					     &sf->pvals[ru->paramset], -1);
+			gpu_uniform_int(k->prog, "u_first", (int)ru->first);
+			if (!gpu_dispatch(s->ctx, k->prog, b, 3, ru->count))
+				return fail(s, "shading a batch of lights on '%s' failed", sf->name);
+			count_dispatch(s, (uint64_t)ru->count * n);
+			if (s->stats)
+				s->stats->batched += (uint64_t)ru->count * n;
+		}
+	}
+	return true;
+}
+
 /* Run @p over the sample ids of band @band (u_first: each run's first id). */
 static bool dispatch_band(struct gpu_shot *s, int band, struct gpu_program *p,
 			  const struct gpu_binding *b, uint32_t nb, const char *what)
@@ -664,22 +767,45 @@ static bool run_shade(struct graph_node *n, void *user, bool *changed)
 		for (uint32_t i = 0; i < s->nlights; i++)
 			lstate_free(&cached[i]);
 	}
-	for (uint32_t i = 0; i < s->nlights; i++) {
+	/* lights entering the cache that can go in batches, by shader */
+	struct light **pending = rl_xmalloc((s->nlights + 1) * sizeof(*pending));
+	uint32_t npending = 0;
+	bool ok = true;
+	for (uint32_t i = 0; ok && i < s->nlights; i++) {
 		struct light *L = &s->lights[i];
 		struct lstate *c = &cached[i];
 		bool want = L->frozen;
 		if (c->valid && (!want || !lstate_equal(c, &L->cur))) {
 			/* take the old contribution out */
 			if (c->on && !shade(s, L, c, band, -1.0f, s->cache))
-				return false;
+				ok = false;
 			lstate_free(c);
 		}
-		if (want && !c->valid) {
-			if (L->cur.on && !shade(s, L, &L->cur, band, 1.0f, s->cache))
-				return false;
+		if (ok && want && !c->valid) {
+			if (L->cur.on && batchable(s, L))
+				pending[npending++] = L;
+			else if (L->cur.on && !shade(s, L, &L->cur, band, 1.0f, s->cache))
+				ok = false;
 			lstate_copy(c, &L->cur);
 		}
 	}
+	/* each shader's pending lights BATCH at a time; one left alone goes alone */
+	for (uint32_t i = 0; ok && i < npending; i++) {
+		if (!pending[i])
+			continue;
+		struct light *batch[BATCH];
+		uint32_t n = 0, shader = pending[i]->shader;
+		for (uint32_t j = i; j < npending && n < BATCH; j++)
+			if (pending[j] && pending[j]->shader == shader) {
+				batch[n++] = pending[j];
+				pending[j] = NULL;
+			}
+		ok = n == 1 ? shade(s, batch[0], &batch[0]->cur, band, 1.0f, s->cache)
+			    : shade_batch(s, batch, n, band);
+	}
+	free(pending);
+	if (!ok)
+		return false;
 	if (!combine(s, band))
 		return false;
 	for (uint32_t i = 0; i < s->nlights; i++) {
@@ -961,12 +1087,17 @@ static bool load_lights(struct gpu_shot *s)
 	return true;
 }
 
-/* Emit and compile kernel @k of surface @sf with light shader @light (NULL: none). */
+/*
+ * Emit and compile kernel @k of surface @sf with light shader @light (NULL:
+ * none); with @batch, BATCH passes of it, one light each.
+ */
 static bool make_kernel(struct gpu_shot *s, struct surface *sf, const struct sl_program *light,
-			struct kernel *k, const uint8_t *steps)
+			struct kernel *k, const uint8_t *steps, bool batch)
 {
 	struct sl_slice slice = sf->spec->slice;
 	slice.input_steps = steps;
+	slice.per_light = batch;
+	slice.sink = batch ? batch_sink : NULL;
 	/* the colour alone: the opacity comes with the pixels, output
 	 * parameters reach no image */
 	int32_t ci = sf->prog->global_reg[SL_GLOBAL_CI];
@@ -978,8 +1109,10 @@ static bool make_kernel(struct gpu_shot *s, struct surface *sf, const struct sl_
 		}
 	if (slice.noutputs != 1 || slice.outputs[0] != ci)
 		return fail(s, "surface '%s' sets no colour (Ci)", sf->name);
-	const struct sl_program *lights[1] = { light };
-	k->glsl = sl_glsl_emit(&slice, lights, light ? 1 : 0, &k->layout, s->diag);
+	const struct sl_program *lights[BATCH];
+	for (int i = 0; i < BATCH; i++)
+		lights[i] = light;
+	k->glsl = sl_glsl_emit(&slice, lights, !light ? 0 : batch ? BATCH : 1, &k->layout, s->diag);
 	if (!k->glsl)
 		return fail(s, "surface '%s'%s%s cannot run on the GPU", sf->name,
 			    light ? " lit by " : "", light ? light->name : "");
@@ -1057,13 +1190,24 @@ static bool load_surface(struct gpu_shot *s, const struct shot_file *f, uint32_t
 		memcpy(steps, sp->cached_deriv, sp->ncached);
 	}
 	/* kernels: the surface alone, then with each light shader */
-	bool ok = make_kernel(s, sf, NULL, &sf->base, steps);
+	bool ok = make_kernel(s, sf, NULL, &sf->base, steps, false);
 	if (ok && sp->needs_stencil && !sf->base.layout.in_step_u)
 		ok = fail(s, "surface '%s' needs derivative stencils, which its GPU program "
 			  "does not take", sf->name);
 	sf->lk = rl_xcalloc(s->nlshaders + MAX_ADDED_SHADERS, sizeof(*sf->lk));
 	for (uint32_t k = 0; ok && k < s->nlshaders; k++)
-		ok = make_kernel(s, sf, s->lshaders[k].prog, &sf->lk[k], steps);
+		ok = make_kernel(s, sf, s->lshaders[k].prog, &sf->lk[k], steps, false);
+	/* batches for the shaders of two lights or more that read no shadow map */
+	sf->bk = rl_xcalloc(s->nlshaders + MAX_ADDED_SHADERS, sizeof(*sf->bk));
+	for (uint32_t k = 0; ok && k < s->nlshaders; k++) {
+		uint32_t users = 0;
+		for (uint32_t i = 0; i < s->nlights; i++)
+			users += s->lights[i].shader == k;
+		if (users >= 2 && !sf->lk[k].layout.nshadows &&
+		    !make_kernel(s, sf, s->lshaders[k].prog, &sf->bk[k], steps, true)) {
+			ok = false;
+		}
+	}
 	free(steps);
 	if (!ok)
 		return false;
@@ -1417,16 +1561,26 @@ static bool warm_up(struct gpu_shot *s, int only)
 		struct surface *sf = &s->surfaces[si];
 		if (!sf->nrows)
 			continue;
-		for (uint32_t k = 0; k <= s->nlshaders; k++) {
+		for (uint32_t k = 0; k <= 2 * s->nlshaders; k++) {
 			if (only >= 0 && k != (uint32_t)only)
 				continue;
-			struct kernel *kk = k < s->nlshaders ? &sf->lk[k] : &sf->base;
+			struct kernel *kk = k < s->nlshaders ? &sf->lk[k] : k == s->nlshaders
+				? &sf->base : &sf->bk[k - s->nlshaders - 1];
+			if (!kk->prog)
+				continue;
 			struct gpu_binding b[2 + 64];
 			uint32_t nb = 0;
 			b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 			b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
 			if (!bind_shadows(s, kk, NULL, b, &nb))
 				return false;
+			if (k > s->nlshaders) {
+				/* a batch: no light counts, so the cache keeps its value */
+				b[1] = (struct gpu_binding){ 1, false, s->base };
+				b[nb++] = (struct gpu_binding){ 2, true, s->cache };
+				gpu_uniform_int(kk->prog, "u_id0", (int)sf->id0);
+				gpu_uniform_int(kk->prog, "u_n", 0);
+			}
 			gpu_uniform_int(kk->prog, "u_first", 0);
 			if (!gpu_dispatch(s->ctx, kk->prog, b, nb, 1))
 				return fail(s, "running the programs of '%s' failed", sf->name);
@@ -1681,7 +1835,10 @@ void gpu_shot_close(struct gpu_shot *s)
 		kernel_free(&sf->base);
 		for (uint32_t k = 0; sf->lk && k < s->nlshaders; k++)
 			kernel_free(&sf->lk[k]);
+		for (uint32_t k = 0; sf->bk && k < s->nlshaders; k++)
+			kernel_free(&sf->bk[k]);
 		free(sf->lk);
+		free(sf->bk);
 		for (int b = 0; b < NBANDS; b++)
 			rl_vec_free(sf->runs[b]);
 		for (uint32_t p = 0; p < sf->nparamsets; p++)
@@ -2171,13 +2328,13 @@ static float *records_of(struct surface *sf, uint32_t n)
 	return rec;
 }
 
-/* Float operations per sample of surface @sf lit by @L, on the interpreter. */
+/* Float operations per sample of surface @sf lit by @L (NULL: none), on the interpreter. */
 static double count_flops(struct gpu_shot *s, struct surface *sf, struct light *L)
 {
 	uint32_t n = sf->nrows < 1024 ? (uint32_t)sf->nrows : 1024;
 	float *rec = n ? records_of(sf, n) : NULL;
 	uint64_t ops = 0;
-	bool ok = rec && run_cpu(s, sf, rec, n, &L, 1, NULL, &ops);
+	bool ok = rec && run_cpu(s, sf, rec, n, L ? &L : NULL, L ? 1 : 0, NULL, &ops);
 	free(rec);
 	return ok ? (double)ops / n : -1.0;
 }
@@ -2232,6 +2389,47 @@ static void check_linear(struct gpu_shot *s, struct surface *sf)
 	free(sum);
 }
 
+/*
+ * The batch kernel of @L's shader on @sf, every pass lit by @L, over every
+ * row: best of three runs in ms (-1 on failure). It adds into a cache of
+ * its own, so the shot's stays as it was.
+ */
+static double profile_batch(struct gpu_shot *s, struct surface *sf, struct light *L)
+{
+	struct kernel *k = &sf->bk[L->shader];
+	const struct sl_program *lp = s->lshaders[L->shader].prog;
+	for (uint32_t j = 0; j < BATCH; j++) {
+		char name[32];
+		set_uniforms(k->prog, &k->layout, lp, &L->cur, (int)j);
+		snprintf(name, sizeof(name), "l%u_shader", j);
+		gpu_uniform_mat4(k->prog, name, L->to_camera);
+	}
+	gpu_uniform_mat4(k->prog, "space_world", s->w2c);
+	if (sf->nparamsets)
+		set_uniforms(k->prog, &k->layout, sf->spec->dynamic, &sf->pvals[0], -1);
+	gpu_uniform_int(k->prog, "u_id0", (int)sf->id0);
+	gpu_uniform_int(k->prog, "u_n", BATCH);
+	gpu_uniform_int(k->prog, "u_first", 0);
+	struct gpu_buffer *cache = gpu_buffer_create(s->ctx, (size_t)(sf->id0 + sf->nrows) * 3 *
+						     sizeof(double) + 16, NULL);
+	if (!cache)
+		return -1.0;
+	struct gpu_binding b[3] = {
+		{ 0, false, sf->records, true }, { 1, false, s->base }, { 2, true, cache },
+	};
+	double best = 1e30;
+	for (int r = 0; r < 3 && best >= 0; r++) {
+		double t0 = now_ms();
+		if (!gpu_finish(s->ctx) || !gpu_dispatch(s->ctx, k->prog, b, 3, (uint32_t)sf->nrows) ||
+		    !gpu_finish(s->ctx))
+			best = -1.0;
+		double t = now_ms() - t0;
+		best = best >= 0 && t < best ? t : best;
+	}
+	gpu_buffer_destroy(cache);
+	return best;
+}
+
 bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_profile *out,
 		      char *err, size_t errlen)
 {
@@ -2239,7 +2437,8 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 	struct light *L = find(s, light, err, errlen);
 	if (!L)
 		return false;
-	double flops = 0.0;
+	double flops = 0.0, bflops = 0.0;
+	bool nobatch = false;
 	for (uint32_t si = 0; si < s->nsurfaces; si++) {
 		struct surface *sf = &s->surfaces[si];
 		if (!sf->nrows)
@@ -2295,6 +2494,26 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 		out->kernel_ms += best;
 		out->samples += sf->nrows;
 		flops += per * (double)sf->nrows;
+		if (sf->bk[L->shader].prog) {
+			double bms = profile_batch(s, sf, L);
+			double none = count_flops(s, sf, NULL);
+			if (bms < 0 || none < 0) {
+				errorf(err, errlen, "timing the batch kernel of '%s' failed", sf->name);
+				return false;
+			}
+			out->batch_lights = BATCH;
+			out->batch_ms += bms;
+			bflops += (none + BATCH * (per - none)) * (double)sf->nrows;
+		} else {
+			nobatch = true;
+		}
+	}
+	if (nobatch || !out->batch_ms) {
+		out->batch_lights = 0;
+		out->batch_ms = 0.0;
+	} else {
+		out->batch_flops_per_sample = out->samples ? bflops / (double)out->samples : 0.0;
+		out->batch_flops = bflops / (out->batch_ms * 1e-3);
 	}
 	out->flops_per_sample = out->samples ? flops / (double)out->samples : 0.0;
 	out->flops = out->kernel_ms > 0 ? flops / (out->kernel_ms * 1e-3) : 0.0;
@@ -2492,7 +2711,7 @@ static int light_shader(struct gpu_shot *s, const char *name, char *err, size_t 
 			steps = rl_xcalloc(sf->spec->ncached + 1, 1);
 			memcpy(steps, sf->spec->cached_deriv, sf->spec->ncached);
 		}
-		bool ok = make_kernel(s, sf, p, &sf->lk[k], steps);
+		bool ok = make_kernel(s, sf, p, &sf->lk[k], steps, false);
 		free(steps);
 		if (!ok) {
 			errorf(err, errlen, "light shader '%s' cannot light surface '%s' on the GPU "

@@ -220,6 +220,7 @@ struct gpu_shot_stats {
 	double ms;                 /* wall time of this call, the GPU finished */
 	uint64_t entries;          /* indirect-framebuffer entries the level resolves */
 	uint64_t shaded;           /* (sample, light) pairs shaded by this call */
+	uint64_t batched;          /* those of them shaded in batches (GPU_SHOT_BATCH) */
 	uint32_t dispatches;       /* kernels run */
 };
 
@@ -244,6 +245,9 @@ bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px);
 
 /* ---- measuring ---- */
 
+/** Lights one batch kernel shades (lights of one shader entering the light cache together). */
+#define GPU_SHOT_BATCH 8
+
 struct gpu_shot_profile {
 	uint64_t samples;          /* shading samples the kernels ran over */
 	double kernel_ms;          /* the shading kernels alone, best of three runs */
@@ -253,6 +257,16 @@ struct gpu_shot_profile {
 				      counted on the interpreter (exec.h sl_exec_ops) over up
 				      to 1024 samples of each surface */
 	double flops;              /* samples * flops_per_sample / kernel time */
+	/*
+	 * The batch kernels of the light's shader (when the shot has two
+	 * lights of it or more): GPU_SHOT_BATCH passes, one light each, on one
+	 * read of each record, adding into a light cache (one set aside, so
+	 * the shot is untouched). 0 when there are none.
+	 */
+	uint32_t batch_lights;     /* lights a batch shades: GPU_SHOT_BATCH, or 0 */
+	double batch_ms;           /* every sample, best of three runs */
+	double batch_flops_per_sample; /* the surface once and the light's part per pass */
+	double batch_flops;        /* samples * batch_flops_per_sample / batch_ms */
 };
 
 /**

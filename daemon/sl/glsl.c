@@ -1042,6 +1042,9 @@ static void emit_illuminance(struct glsl_gen *g, uint32_t pc)
 		if (!test)
 			continue;
 		sl_glsl_line(g, "/* light %u */", j);
+		if (g->slice->per_light)
+			test = *test ? SL_GLSL_FMT(g, "rl_only == %u && (%s)", j, test)
+				     : SL_GLSL_FMT(g, "rl_only == %u", j);
 		if (*test) {
 			sl_glsl_line(g, "if (%s) {", test);
 			g->indent++;
@@ -2011,6 +2014,35 @@ static void check_inputs(struct glsl_gen *g, const uint8_t *is_input)
 	}
 }
 
+/*
+ * Per-light passes: rl_reset() sets every register of the surface (and
+ * their moved copies) back to where a kernel starts them, so that each
+ * pass starts as the one-light kernel does. Emitted after the passes, when
+ * the moved copies they use are known.
+ */
+static void emit_reset(struct glsl_gen *g)
+{
+	struct glsl_prog *p = &g->sp;
+	const struct sl_program *prog = p->prog;
+	g->cur = p;
+	g->out = &g->sec[GS_MAIN];
+	g->indent = 0;
+	sl_glsl_line(g, "void rl_reset() {");
+	g->indent++;
+	for (uint32_t r = 0; r < prog->nregs; r++) {
+		const struct sl_reg *rg = &prog->regs[r];
+		if (rg->kind == SL_REG_CONST || rg->arraylen)
+			continue;
+		sl_glsl_line(g, "%s = %s;", p->name[r], reg_init(p, (int32_t)r));
+		for (int dir = 1; p->mdecl && dir <= 2; dir++)
+			if (p->mdecl[r] & dir)
+				sl_glsl_line(g, "%c%s = %s;", dir == 1 ? 'u' : 'v', p->name[r],
+					     reg_init(p, (int32_t)r));
+	}
+	g->indent--;
+	sl_glsl_line(g, "}");
+}
+
 static void emit_main(struct glsl_gen *g, struct sl_glsl_layout *layout)
 {
 	const struct sl_slice *s = g->slice;
@@ -2020,12 +2052,21 @@ static void emit_main(struct glsl_gen *g, struct sl_glsl_layout *layout)
 	g->nstack = 0;
 	g->out = &g->sec[GS_MAIN];
 	g->indent = 0;
-	sl_glsl_line(g, "void main() {");
-	g->indent++;
-	sl_glsl_line(g, "uint idx = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * "
-		     "gl_NumWorkGroups.x * 64u;");
-	sl_glsl_line(g, "if (idx >= uint(u_count)) return;");
-	sl_glsl_line(g, "idx += uint(u_first);");
+	if (s->per_light) {
+		rl_strbuf_puts(&g->sec[GS_GLOBALS], "uint idx = 0u;\nint rl_only = -1;\n");
+		sl_glsl_line(g, "void rl_reset();");
+		sl_glsl_line(g, "/* the slice lit by light rl_only alone */");
+		sl_glsl_line(g, "void rl_pass() {");
+		g->indent++;
+		sl_glsl_line(g, "rl_reset();");
+	} else {
+		sl_glsl_line(g, "void main() {");
+		g->indent++;
+		sl_glsl_line(g, "uint idx = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * "
+			     "gl_NumWorkGroups.x * 64u;");
+		sl_glsl_line(g, "if (idx >= uint(u_count)) return;");
+		sl_glsl_line(g, "idx += uint(u_first);");
+	}
 	zero_arrays(g);
 	for (uint32_t k = 0; k < g->nlights; k++) {
 		g->cur = &g->lp[k];
@@ -2054,15 +2095,48 @@ static void emit_main(struct glsl_gen *g, struct sl_glsl_layout *layout)
 	}
 	emit_range(g, prog->body_begin, prog->ncode);
 	off = 0;
-	if (s->noutputs)
+	if (s->per_light && s->sink) {
+		const struct sl_reg *rg = &prog->regs[s->outputs[0]];
+		if (s->noutputs != 1 || rg->arraylen || sl_glsl_ncomp(prog, s->outputs[0]) != 3)
+			sl_glsl_error(g, NULL, "a sink takes one output of three floats");
+		else
+			sl_glsl_line(g, "rl_sink(idx, uint(rl_only), %s);",
+				     sl_glsl_op(g, s->outputs[0], 3));
+		layout->out_offset[0] = 0;
+	} else if (s->noutputs && s->per_light)
+		sl_glsl_line(g, "uint rl_out = ((idx - uint(u_first)) * %uu + uint(rl_only)) * %uu;",
+			     g->nlights, layout->out_stride);
+	else if (s->noutputs)
 		sl_glsl_line(g, "uint rl_out = idx * %uu;", layout->out_stride);
-	for (uint32_t i = 0; i < s->noutputs; i++) {
+	for (uint32_t i = 0; i < s->noutputs && !(s->per_light && s->sink); i++) {
 		layout->out_offset[i] = off;
 		store_output(g, s->outputs[i], off);
 		off += (uint32_t)reg_floats(prog, s->outputs[i]);
 	}
 	g->indent--;
 	sl_glsl_line(g, "}");
+	if (!s->per_light)
+		return;
+	if (s->sink)
+		rl_strbuf_printf(&g->sec[GS_GENERATED], "%s\n", s->sink);
+	/* The passes: rl_only is a constant in each, so only its light's code stays. */
+	sl_glsl_line(g, "%s", "");
+	sl_glsl_line(g, "void main() {");
+	g->indent++;
+	sl_glsl_line(g, "idx = gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * "
+		     "gl_NumWorkGroups.x * 64u;");
+	sl_glsl_line(g, "if (idx >= uint(u_count)) return;");
+	sl_glsl_line(g, "idx += uint(u_first);");
+	for (uint32_t k = 0; k < g->nlights; k++) {
+		sl_glsl_line(g, "rl_only = %u;", k);
+		sl_glsl_line(g, "rl_pass();");
+	}
+	if (s->sink)
+		sl_glsl_line(g, "rl_sink_end(idx);");
+	g->indent--;
+	sl_glsl_line(g, "}");
+	sl_glsl_line(g, "%s", "");
+	emit_reset(g);
 }
 
 /* The table of strings, copied into one block that layout->strings owns. */

@@ -48,6 +48,24 @@ struct sl_slice {
 	 * as texture() below.
 	 */
 	const uint8_t *input_steps;
+	/*
+	 * One pass per light: the slice runs once for each light alone, as
+	 * the kernel with that light only would, all passes in the same
+	 * invocation on the inputs read once (the compiler merges the
+	 * fetches and whatever does not depend on the light). Pass k writes
+	 * its outputs at ((sample - u_first) * nlights + k) * out_stride,
+	 * or, with @sink, hands them to the caller's code instead.
+	 * False: one run with every light, outputs at sample * out_stride.
+	 */
+	bool per_light;
+	/*
+	 * With per_light and a single output of three floats: GLSL defining
+	 * void rl_sink(uint sample, uint k, vec3 v), called with pass k's
+	 * output, and void rl_sink_end(uint sample), called after the last
+	 * pass. It may use texture units 1 and SSBO bindings from 2 on, and
+	 * its own uniforms. NULL: outputs go to the buffer.
+	 */
+	const char *sink;
 };
 
 /* A shadow() call of the generated code (with input_steps): which map it

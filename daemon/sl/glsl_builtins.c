@@ -1253,10 +1253,10 @@ static void call_geometry(struct glsl_gen *g, const struct sl_insn *in, int id)
 			e = SL_GLSL_FMT(g, "rl_c(%s * rl_rotation(%s, %s))", op(g, a[0], 0),
 					op(g, a[1], 1), op(g, a[2], 3));
 		} else {
-			if (!need_args(g, in, 4))
-				return;
-			e = fit3(g, nd, SL_GLSL_FMT(g, "rl_rotate(%s, %s, %s, %s)", op(g, a[0], 3),
-						    op(g, a[1], 1), op(g, a[2], 3), op(g, a[3], 3)));
+				if (!need_args(g, in, 4))
+					return;
+				e = fit3(g, nd, SL_GLSL_FMT(g, "rl_rotate(%s, %s, %s, %s)", op(g, a[0], 3),
+							    op(g, a[1], 1), op(g, a[2], 3), op(g, a[3], 3)));
 		}
 		break;
 	case SL_BI_FACEFORWARD: {
@@ -1605,6 +1605,23 @@ static const char *light_flag(struct glsl_gen *g, int k, const char *name)
 	return g->lp[k].name[r];
 }
 
+/* The part of diffuse(), specular() or phong() for light @k, after it ran. */
+static void emit_lit(struct glsl_gen *g, enum glsl_lighting w, int k)
+{
+	const char *flag = light_flag(g, k, w == GL_DIFFUSE ? "__nondiffuse" : "__nonspecular");
+	sl_glsl_line(g, "if (!rl_amb && rl_lit%s%s%s) {", flag ? " && !(" : "", flag ? flag : "",
+		     flag ? " > 0.5)" : "");
+	g->indent++;
+	sl_glsl_line(g, "vec3 Ln = rl_normalize(rl_L);");
+	sl_glsl_line(g, "float cosl = dot(Ln, Nn);");
+	const char *k3 = w == GL_DIFFUSE ? "cosl" :
+			 w == GL_SPECULAR ? "rl_specbrdf(Ln, N, V, rough)" :
+			 "rl_pow(max(0.0, dot(R, Ln)), size)";
+	sl_glsl_line(g, "if (cosl >= 0.0) acc = rl_fin(acc + rl_Cl * %s);", k3);
+	g->indent--;
+	sl_glsl_line(g, "}");
+}
+
 void sl_glsl_emit_lighting(struct glsl_gen *g, enum glsl_lighting w)
 {
 	static const char *const head[GL_COUNT][2] = {
@@ -1624,29 +1641,24 @@ void sl_glsl_emit_lighting(struct glsl_gen *g, enum glsl_lighting w)
 	if (w == GL_PHONG)
 		sl_glsl_line(g, "vec3 R = rl_reflect(-rl_normalize(V), Nn);");
 	for (uint32_t k = 0; k < g->nlights; k++) {
-		sl_glsl_line(g, g->lp[k].moved_ps ? "light_%u(Ps, Psu, Psv);" : "light_%u(Ps);", k);
-		if (w == GL_AMBIENT) {
-			if (g->lp[k].static_ambient)
-				sl_glsl_line(g, "acc += rl_Cl;");
-			else
-				sl_glsl_line(g, "if (rl_amb) acc += rl_Cl;");
+		if (w != GL_AMBIENT && g->lp[k].static_ambient)
 			continue;
+		/* per-light passes: the pass's own light alone */
+		bool gate = g->slice->per_light;
+		if (gate) {
+			sl_glsl_line(g, "if (rl_only == %u) {", k);
+			g->indent++;
 		}
-		if (g->lp[k].static_ambient)
-			continue;
-		const char *flag = light_flag(g, (int)k, w == GL_DIFFUSE ? "__nondiffuse"
-									: "__nonspecular");
-		sl_glsl_line(g, "if (!rl_amb && rl_lit%s%s%s) {", flag ? " && !(" : "",
-			     flag ? flag : "", flag ? " > 0.5)" : "");
-		g->indent++;
-		sl_glsl_line(g, "vec3 Ln = rl_normalize(rl_L);");
-		sl_glsl_line(g, "float cosl = dot(Ln, Nn);");
-		const char *k3 = w == GL_DIFFUSE ? "cosl" :
-				 w == GL_SPECULAR ? "rl_specbrdf(Ln, N, V, rough)" :
-				 "rl_pow(max(0.0, dot(R, Ln)), size)";
-		sl_glsl_line(g, "if (cosl >= 0.0) acc = rl_fin(acc + rl_Cl * %s);", k3);
-		g->indent--;
-		sl_glsl_line(g, "}");
+		sl_glsl_line(g, g->lp[k].moved_ps ? "light_%u(Ps, Psu, Psv);" : "light_%u(Ps);", k);
+		if (w == GL_AMBIENT)
+			sl_glsl_line(g, g->lp[k].static_ambient ? "acc += rl_Cl;"
+								: "if (rl_amb) acc += rl_Cl;");
+		else
+			emit_lit(g, w, (int)k);
+		if (gate) {
+			g->indent--;
+			sl_glsl_line(g, "}");
+		}
 	}
 	sl_glsl_line(g, "return rl_fin(acc);");
 	g->indent--;

@@ -70,6 +70,7 @@ struct result {
 	double err_mean[LEVELS], err_max[LEVELS];
 	double render_mean, render_max;
 	struct gpu_shot_profile prof;
+	struct gpu_shot_profile point;   /* a point light's, with its batch kernel (32 lights) */
 	size_t bytes;
 	bool ok;
 	/* while running */
@@ -177,6 +178,8 @@ static bool shot_finish(const char *relight, const char *dir, struct result *r)
 	for (int L = 0; L < LEVELS; L++)
 		free(img[L]);
 	ok = ok && gpu_shot_profile(s, "1", &r->prof, err, sizeof(err));
+	/* light 4 is the first of the street's point lights */
+	ok = ok && (r->nlights < 4 || gpu_shot_profile(s, "4", &r->point, err, sizeof(err)));
 	if (!ok)
 		fprintf(stderr, "bench_runtime: %s\n", err);
 	gpu_shot_close(s);
@@ -236,11 +239,18 @@ int main(int argc, char **argv)
 			       "\"full_ms\": %.2f, \"first_edit_ms\": %.2f, \"edit_ms\": %.2f, "
 			       "\"render_mean_pct\": %.4f, \"render_max_pct\": %.4f, "
 			       "\"kernel_ms\": %.3f, \"base_ms\": %.3f, \"kernel_samples\": %llu, \"flops_per_sample\": %.1f, "
-			       "\"kernel_flops\": %.4g, \"levels\": [", i ? ", " : "", x->nlights,
+			       "\"kernel_flops\": %.4g, \"point_kernel_ms\": %.3f, "
+			       "\"point_flops_per_sample\": %.1f, \"point_kernel_flops\": %.4g, "
+			       "\"batch_lights\": %u, \"batch_ms\": %.3f, "
+			       "\"batch_flops_per_sample\": %.1f, \"batch_flops\": %.4g, \"levels\": [",
+			       i ? ", " : "", x->nlights,
 			       (unsigned long long)x->samples, x->bytes, x->load_ms, x->full_ms,
 			       x->first_edit_ms, x->total_ms, x->render_mean, x->render_max,
 			       x->prof.kernel_ms, x->prof.base_ms, (unsigned long long)x->prof.samples,
-			       x->prof.flops_per_sample, x->prof.flops);
+			       x->prof.flops_per_sample, x->prof.flops, x->point.kernel_ms,
+			       x->point.flops_per_sample, x->point.flops, x->point.batch_lights,
+			       x->point.batch_ms, x->point.batch_flops_per_sample,
+			       x->point.batch_flops);
 			for (int L = 0; L < LEVELS; L++)
 				printf("%s{\"level\": %d, \"ms\": %.3f, \"entries\": %llu, \"shaded\": %llu, "
 				       "\"mean_pct\": %.4f, \"max_pct\": %.4f}", L ? ", " : "", L,
@@ -277,6 +287,17 @@ int main(int argc, char **argv)
 			       (double)x->prof.samples / (x->prof.kernel_ms * 1e3),
 			       x->prof.flops_per_sample, x->prof.flops * 1e-9,
 			       x->prof.flops / rate.flops);
+			if (!x->point.batch_lights)
+				continue;
+			const struct gpu_shot_profile *p = &x->point;
+			printf("  point light 4 alone: %.2f ms, %.0f flops/sample = %.1f GFLOP/s = %.2f "
+			       "of the arithmetic rate\n", p->kernel_ms, p->flops_per_sample,
+			       p->flops * 1e-9, p->flops / rate.flops);
+			printf("  batch kernel (%u point lights a pass each, one read of each record): "
+			       "%.2f ms = %.2f ms a light; %.0f flops/sample = %.1f GFLOP/s = %.2f of "
+			       "the arithmetic rate\n\n", p->batch_lights, p->batch_ms,
+			       p->batch_ms / p->batch_lights, p->batch_flops_per_sample,
+			       p->batch_flops * 1e-9, p->batch_flops / rate.flops);
 		}
 		printf("32 lights against 1, per level:");
 		for (int L = 0; L < LEVELS; L++)

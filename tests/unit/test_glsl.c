@@ -416,12 +416,21 @@ static int32_t output_reg(const struct sl_program *p, const char *name)
 }
 
 /*
+ * Per-light passes (sl_slice.per_light): when set, xc_gpu emits one pass per
+ * light and compares pass k with pass_ref[k], the same surface lit by light
+ * k alone, run on the interpreter.
+ */
+static struct xc *pass_ref[MAXL];
+
+/*
  * Emit the surface with its lights, run it on the GPU over the same inputs
  * and compare @outs with the interpreter's. Returns the largest difference
  * (negative when the GPU part could not run).
  */
 static double xc_gpu(struct xc *c, const char *const *outs, int nouts, double tol)
 {
+	bool passes = pass_ref[0] != NULL;
+	uint32_t npass = passes ? (uint32_t)c->nl : 1;
 	const struct sl_program *surf = c->prog[0];
 	int32_t inputs[SL_GLOBAL_COUNT], outputs[32];
 	uint32_t nin = 0;
@@ -435,6 +444,7 @@ static double xc_gpu(struct xc *c, const char *const *outs, int nouts, double to
 			return -1;
 	}
 	struct sl_slice slice = { surf, NULL, inputs, nin, outputs, (uint32_t)nouts };
+	slice.per_light = passes;
 	struct sl_glsl_layout lay;
 	const struct sl_program *lights[MAXL];
 	for (int k = 0; k < c->nl; k++)
@@ -489,33 +499,37 @@ static double xc_gpu(struct xc *c, const char *const *outs, int nouts, double to
 					c->glob[g][(size_t)k * n + i];
 	}
 	struct gpu_buffer *bin = gpu_buffer_create(ctx, (size_t)n * is * sizeof(float), in);
-	struct gpu_buffer *bout = gpu_buffer_create(ctx, (size_t)n * (os ? os : 1) *
-							     sizeof(float), NULL);
-	float *out = calloc((size_t)n * (os ? os : 1), sizeof(float));
+	size_t nout = (size_t)n * npass * (os ? os : 1);
+	struct gpu_buffer *bout = gpu_buffer_create(ctx, nout * sizeof(float), NULL);
+	float *out = calloc(nout, sizeof(float));
 	struct gpu_binding b[2] = { { 0, false, bin, true }, { 1, true, bout } };
 	CHECK(gpu_dispatch(ctx, gp, b, 2, n));
 	t0 = now_ms();
 	CHECK(gpu_dispatch(ctx, gp, b, 2, n));
-	CHECK(gpu_buffer_read(bout, 0, (size_t)n * os * sizeof(float), out));
+	CHECK(gpu_buffer_read(bout, 0, nout * sizeof(float), out));
 	c->gpu_ms = now_ms() - t0;
 	maxerr = 0;
 	int reported = 0;
-	for (int k = 0; k < nouts; k++) {
+	for (int kp = 0; kp < nouts * (int)npass; kp++) {
+		int k = kp % nouts;
+		uint32_t pass = (uint32_t)kp / (uint32_t)nouts;
+		struct sl_exec *x = passes ? pass_ref[pass]->x[0] : c->x[0];
 		double kerr = 0;
 		int32_t r = outputs[k];
 		const struct sl_reg *rg = &surf->regs[r];
 		int nc = sl_reg_ncomp(rg) * (rg->arraylen > 0 ? rg->arraylen : 1);
 		bool vary = rg->varying;
-		const float *d = sl_exec_reg(c->x[0], r);
+		const float *d = sl_exec_reg(x, r);
 		for (uint32_t i = 0; i < n; i++)
 			for (int q = 0; q < nc; q++) {
-				float cpu = d[(size_t)q * (vary ? sl_exec_stride(c->x[0]) : 1) +
+				float cpu = d[(size_t)q * (vary ? sl_exec_stride(x) : 1) +
 					      (vary ? i : 0)];
-				float gpu = out[(size_t)i * os + lay.out_offset[k] + (uint32_t)q];
+				float gpu = out[((size_t)i * npass + pass) * os + lay.out_offset[k] +
+						(uint32_t)q];
 				double e = fabs((double)gpu - cpu) / fmax(1.0, fabs((double)cpu));
 				if (!(e <= tol) && reported++ < 8)
-					fprintf(stderr, "%s: %s[%d] at point %u: gpu %.9g cpu %.9g\n",
-						c->name, outs[k], q, i, gpu, cpu);
+					fprintf(stderr, "%s: %s[%d] at point %u (pass %u): gpu %.9g cpu %.9g\n",
+						c->name, outs[k], q, i, pass, gpu, cpu);
 				if (!(e <= maxerr))
 					maxerr = e;
 				if (!(e <= kerr))
@@ -1361,6 +1375,70 @@ static void test_illuminance(void)
 		xc_set3(&c, 8, "from", -1, 1, 2);
 		xc_check(&c, o7, 7, TOL);
 		xc_free(&c);
+	}
+	sl_program_destroy(sp);
+	sl_program_destroy(a);
+	sl_program_destroy(b);
+	sl_program_destroy(cn);
+	sl_program_destroy(amb);
+}
+
+/* Light @j of the per-light test, program @i of @c: its parameters. */
+static void pass_light(struct xc *c, int i, int j)
+{
+	if (j == 0) {
+		xc_set3(c, i, "from", 0.5f, 2, 1);
+		xc_setf(c, i, "intensity", 4);
+		xc_sets(c, i, "__category", "rim");
+		xc_setf(c, i, "__nonspecular", 1);
+	} else if (j == 1) {
+		xc_set3(c, i, "dir", 0.2f, -0.3f, 1);
+		xc_setf(c, i, "__nondiffuse", 1);
+		xc_sets(c, i, "__category", "key");
+	} else if (j == 2) {
+		xc_setf(c, i, "intensity", 0.25f);
+	} else {
+		xc_setf(c, i, "intensity", 0.2f);
+	}
+}
+
+/*
+ * Per-light passes (sl_slice.per_light): the illuminance surface with four
+ * lights of four shaders (categories, __nondiffuse, __nonspecular, an
+ * ambient light), each pass against the interpreter lit by that light alone.
+ */
+static void test_per_light(void)
+{
+	struct sl_program *sp = compile("illum.sl", illum_src), *a = compile("key.sl", lightsA_src),
+			  *b = compile("fill.sl", lightsB_src), *cn = compile("cone.sl", lightsC_src),
+			  *amb = load("ambientlight");
+	CHECK(sp && a && b && cn && amb);
+	if (sp && a && b && cn && amb) {
+		struct sl_program *set[4] = { a, b, cn, amb };
+		struct xc all, one[4];
+		for (int k = 0; k <= 4; k++) {
+			struct xc *c = k < 4 ? &one[k] : &all;
+			xc_init(c, k < 4 ? "one light" : "per-light passes", sp, NPTS);
+			for (int j = 0; j < 4; j++) {
+				if (k < 4 && j != k)
+					continue;
+				xc_add(c, set[j]);
+				pass_light(c, k < 4 ? 1 : 1 + j, j);
+			}
+		}
+		/* light k alone, in the space it has as light k of all four */
+		float first[16];
+		memcpy(first, light_mats[0], sizeof(first));
+		for (int k = 0; k < 4; k++) {
+			memcpy(light_mats[0], light_mats[k], sizeof(first));
+			CHECK(xc_cpu(&one[k]));
+			pass_ref[k] = &one[k];
+		}
+		memcpy(light_mats[0], first, sizeof(first));
+		xc_check(&all, o7, 7, TOL);
+		memset(pass_ref, 0, sizeof(pass_ref));
+		for (int k = 0; k <= 4; k++)
+			xc_free(k < 4 ? &one[k] : &all);
 	}
 	sl_program_destroy(sp);
 	sl_program_destroy(a);
@@ -2665,6 +2743,7 @@ int main(void)
 	RUN(test_strings);
 	RUN(test_noise);
 	RUN(test_illuminance);
+	RUN(test_per_light);
 	RUN(test_other_shaders);
 	RUN(test_library_lights);
 	RUN(test_library_surfaces);

@@ -626,6 +626,96 @@ static void test_surface_and_lights(void)
 	gpu_shot_close(sh);
 }
 
+/*
+ * Lights of one shader enter the light cache in batches (runtime.c BATCH):
+ * eleven point lights from 1e-3 to 1e3, one of them kept off the sphere by
+ * Illuminate (so it goes alone), against the CPU; then one batched light
+ * edited at random and restored, which takes its own contribution out of a
+ * batch's.
+ */
+static const char batch_scene[] =
+	"Format 64 48 1\nPixelSamples 2 2\nProjection \"perspective\" \"fov\" 45\n"
+	"Display \"batch.exr\" \"file\" \"rgba\"\n"
+	"Translate 0 -0.6 4\nRotate -15 1 0 0\nWorldBegin\n"
+	"LIGHTS"
+	"  LightSource \"distantlight\" 20 \"intensity\" 0.3 \"from\" [0 1 0] \"to\" [0.2 0 0.3]\n"
+	"  Surface \"plastic\" \"roughness\" 0.2\n"
+	"  Polygon \"P\" [-3 0 -2  -3 0 4  3 0 4  3 0 -2]\n"
+	"  AttributeBegin Illuminate 3 0 Surface \"matte\" Translate 0 0.5 1"
+	" Sphere 0.5 -0.5 0.5 360 AttributeEnd\n"
+	"WorldEnd\n";
+
+static void test_batches(void)
+{
+	char lights[4096], shot[512], err[256];
+	size_t at = 0;
+	for (int k = 1; k <= 11; k++)
+		at += (size_t)snprintf(lights + at, sizeof(lights) - at,
+				       "  LightSource \"pointlight\" %d \"intensity\" %g \"from\" [%g %g %g]"
+				       " \"lightcolor\" [1 %g 0.5]\n", k, pow(10.0, (k - 6) * 0.6),
+				       -2.0 + 0.4 * k, 0.3 + 0.2 * (k % 3), 0.5 + 0.3 * (k % 4),
+				       0.2 + 0.07 * k);
+	CHECK(bake("batch", batch_scene, "LIGHTS", lights, "", shot, sizeof(shot)));
+	struct gpu_shot_opts o = { .texture_path = workdir };
+	struct gpu_shot *sh = gpu_shot_open(ctx, shot, &o);
+	CHECK(sh != NULL);
+	if (!sh)
+		return;
+	size_t n = (size_t)W * H * 4;
+	struct gpu_shot_stats st;
+	CHECK(gpu_shot_render(sh, GPU_SHOT_FINAL, &st));
+	/* ten point lights in two batches (8 and 2); light 3 and the distant one alone */
+	CHECK(st.batched == 10 * gpu_shot_samples(sh));
+	CHECK(st.shaded == 13 * gpu_shot_samples(sh));
+	float *g0 = image_of(shot, true, sh), *c = image_of(shot, false, NULL);
+	size_t worst = 0;
+	double r = max_rel(g0, c, n, &worst);
+	if (!(r <= REL_TOL))
+		fprintf(stderr, "batches against the CPU: %g at %zu\n", r, worst / 4);
+	CHECK(r <= REL_TOL);
+	CHECK(all_finite(g0, n));
+	free(c);
+	/* light 9 (intensity 10) edited 200 times, then one edit checked against the CPU */
+	for (int e = 0; e < 200; e++) {
+		float v = (float)pow(10.0, 8.0 * uniform() - 4.0);
+		float from[3] = { (float)(4 * uniform() - 2), (float)(0.2 + uniform()), 0.5f };
+		CHECK(gpu_shot_set(sh, "9", "intensity", &v, 1, err, sizeof(err)));
+		CHECK(gpu_shot_set(sh, "9", "from", from, 3, err, sizeof(err)));
+		CHECK(gpu_shot_render(sh, e % 4, NULL));
+	}
+	float v = 40.0f, from[3] = { 0.5f, 1.2f, 0.5f };
+	CHECK(gpu_shot_set(sh, "9", "intensity", &v, 1, err, sizeof(err)));
+	CHECK(gpu_shot_set(sh, "9", "from", from, 3, err, sizeof(err)));
+	float *g = image_of(shot, true, sh);
+	struct resolve_edit ed[2] = { { .light = "9", .param = "intensity", .values = { 40.0f },
+					.nvalues = 1 },
+				      { .light = "9", .param = "from", .values = { 0.5f, 1.2f, 0.5f },
+					.nvalues = 3 } };
+	struct resolve_opts ro = { .diag = stderr, .level = 3, .texture_path = workdir,
+				   .edits = ed, .nedits = 2 };
+	struct resolve_result rr;
+	CHECK(resolve_cpu(shot, &ro, &rr));
+	r = rr.rgba && rr.width == W && rr.height == H ? max_rel(g, rr.rgba, n, &worst) : 1.0;
+	if (!(r <= REL_TOL))
+		fprintf(stderr, "batched light edited, against the CPU: %g at %zu\n", r, worst / 4);
+	CHECK(r <= REL_TOL);
+	free(rr.rgba);
+	free(g);
+	/* restored: the image before the edits */
+	float one = (float)pow(10.0, 3 * 0.6);
+	float back[3] = { -2.0f + 0.4f * 9, 0.3f + 0.2f * (9 % 3), 0.5f + 0.3f * (9 % 4) };
+	CHECK(gpu_shot_set(sh, "9", "intensity", &one, 1, err, sizeof(err)));
+	CHECK(gpu_shot_set(sh, "9", "from", back, 3, err, sizeof(err)));
+	g = image_of(shot, true, sh);
+	r = max_rel(g, g0, n, &worst);
+	if (!(r <= REL_TOL))
+		fprintf(stderr, "batched light restored: %g at %zu\n", r, worst / 4);
+	CHECK(r <= REL_TOL);
+	free(g);
+	free(g0);
+	gpu_shot_close(sh);
+}
+
 /* A surface that squares its lighting is not linear in its lights: loading says so. */
 static void test_nonlinear(void)
 {
@@ -825,6 +915,7 @@ int main(int argc, char **argv)
 			RUN(test_shadow_look);
 			RUN(test_nonlinear);
 			RUN(test_surface_and_lights);
+			RUN(test_batches);
 		}
 		rc = test_finish();
 	}
