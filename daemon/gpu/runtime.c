@@ -540,6 +540,14 @@ static bool bind_shadows(struct gpu_shot *s, const struct kernel *k, const struc
 	return bind_maps(s, k, L, true, b, nb);
 }
 
+/* Before dispatching kernel @k over run @ru of @sf: its paramset's uniforms and first row. */
+static void run_uniforms(struct kernel *k, const struct surface *sf, const struct run *ru)
+{
+	if (sf->nparamsets && ru->paramset < sf->nparamsets)
+		set_uniforms(k->prog, &k->layout, sf->spec->dynamic, &sf->pvals[ru->paramset], -1);
+	gpu_uniform_int(k->prog, "u_first", (int)ru->first);
+}
+
 /*
  * Shade light @L (its state @st; NULL: the surface with no light) over the
  * rows of band @band of every surface, and fold the result into @dst:
@@ -569,10 +577,7 @@ static bool shade_pass(struct gpu_shot *s, struct light *L, const struct lstate 
 		uint32_t ostride = k->layout.out_stride;
 		for (size_t r = 0; r < sf->runs[band].len; r++) {
 			const struct run *ru = &sf->runs[band].data[r];
-			if (sf->nparamsets && ru->paramset < sf->nparamsets)
-				set_uniforms(k->prog, &k->layout, sf->spec->dynamic,
-					     &sf->pvals[ru->paramset], -1);
-			gpu_uniform_int(k->prog, "u_first", (int)ru->first);
+			run_uniforms(k, sf, ru);
 			if (!gpu_dispatch(s->ctx, k->prog, b, nb, ru->count))
 				return fail(s, "shading '%s' on the GPU failed", sf->name);
 			count_dispatch(s, ru->count);
@@ -646,6 +651,22 @@ static bool batchable(const struct gpu_shot *s, const struct light *L)
 	return true;
 }
 
+/* The uniforms of batch kernel @k for lights @ls[0 .. n), the last repeated in spare passes. */
+static void batch_uniforms(struct gpu_shot *s, struct kernel *k, struct light *const *ls,
+			   uint32_t n)
+{
+	const struct sl_program *lp = s->lshaders[ls[0]->shader].prog;
+	for (uint32_t j = 0; j < BATCH; j++) {
+		const struct light *L = ls[j < n ? j : n - 1];
+		char name[32];
+		set_uniforms(k->prog, &k->layout, lp, &L->cur, (int)j);
+		snprintf(name, sizeof(name), "l%u_shader", j);
+		gpu_uniform_mat4(k->prog, name, L->to_camera);
+	}
+	gpu_uniform_mat4(k->prog, "space_world", s->w2c);
+	gpu_uniform_int(k->prog, "u_n", (int)n);
+}
+
 /*
  * Add lights @ls[0 .. n) (2 <= n <= BATCH, one shader, each batchable) to
  * the light cache over band @band: per surface and run, one dispatch of
@@ -653,31 +674,19 @@ static bool batchable(const struct gpu_shot *s, const struct light *L)
  */
 static bool shade_batch(struct gpu_shot *s, struct light *const *ls, uint32_t n, int band)
 {
-	const struct sl_program *lp = s->lshaders[ls[0]->shader].prog;
 	for (uint32_t si = 0; si < s->nsurfaces; si++) {
 		struct surface *sf = &s->surfaces[si];
 		if (!sf->runs[band].len)
 			continue;
 		struct kernel *k = &sf->bk[ls[0]->shader];
-		for (uint32_t j = 0; j < BATCH; j++) {
-			const struct light *L = ls[j < n ? j : n - 1];
-			char name[32];
-			set_uniforms(k->prog, &k->layout, lp, &L->cur, (int)j);
-			snprintf(name, sizeof(name), "l%u_shader", j);
-			gpu_uniform_mat4(k->prog, name, L->to_camera);
-		}
-		gpu_uniform_mat4(k->prog, "space_world", s->w2c);
+		batch_uniforms(s, k, ls, n);
 		gpu_uniform_int(k->prog, "u_id0", (int)sf->id0);
-		gpu_uniform_int(k->prog, "u_n", (int)n);
 		struct gpu_binding b[3] = {
 			{ 0, false, sf->records, true }, { 1, false, s->base }, { 2, true, s->cache },
 		};
 		for (size_t r = 0; r < sf->runs[band].len; r++) {
 			const struct run *ru = &sf->runs[band].data[r];
-			if (sf->nparamsets && ru->paramset < sf->nparamsets)
-				set_uniforms(k->prog, &k->layout, sf->spec->dynamic,
-					     &sf->pvals[ru->paramset], -1);
-			gpu_uniform_int(k->prog, "u_first", (int)ru->first);
+			run_uniforms(k, sf, ru);
 			if (!gpu_dispatch(s->ctx, k->prog, b, 3, ru->count))
 				return fail(s, "shading a batch of lights on '%s' failed", sf->name);
 			count_dispatch(s, (uint64_t)ru->count * n);
@@ -2397,18 +2406,12 @@ static void check_linear(struct gpu_shot *s, struct surface *sf)
 static double profile_batch(struct gpu_shot *s, struct surface *sf, struct light *L)
 {
 	struct kernel *k = &sf->bk[L->shader];
-	const struct sl_program *lp = s->lshaders[L->shader].prog;
-	for (uint32_t j = 0; j < BATCH; j++) {
-		char name[32];
-		set_uniforms(k->prog, &k->layout, lp, &L->cur, (int)j);
-		snprintf(name, sizeof(name), "l%u_shader", j);
-		gpu_uniform_mat4(k->prog, name, L->to_camera);
-	}
-	gpu_uniform_mat4(k->prog, "space_world", s->w2c);
+	struct light *ls[1] = { L };
+	batch_uniforms(s, k, ls, 1);
+	gpu_uniform_int(k->prog, "u_n", BATCH);
 	if (sf->nparamsets)
 		set_uniforms(k->prog, &k->layout, sf->spec->dynamic, &sf->pvals[0], -1);
 	gpu_uniform_int(k->prog, "u_id0", (int)sf->id0);
-	gpu_uniform_int(k->prog, "u_n", BATCH);
 	gpu_uniform_int(k->prog, "u_first", 0);
 	struct gpu_buffer *cache = gpu_buffer_create(s->ctx, (size_t)(sf->id0 + sf->nrows) * 3 *
 						     sizeof(double) + 16, NULL);
