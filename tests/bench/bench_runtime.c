@@ -8,14 +8,18 @@
  * For each shot: loading, the first frame with every light (full), then a
  * run of edits of light 1's intensity, each refined level by level as an
  * interactive session sees it: the median time of each level and of the
- * whole refinement, the entries resolved and the samples shaded. The first
+ * whole refinement, the host's share of it (CPU time of the calling thread:
+ * on a GPU, a level whose host time is close to its time is bound by the
+ * host), the entries resolved, the samples shaded and the kernels run. The first
  * edit after the full frame also takes light 1 out of the light cache
  * (shading it once more), so it is reported apart; the edits after it are
  * what a lighter dragging a slider gets.
  *
  * Beside them: the shading rate of the kernels alone (gpu_shot_profile:
  * samples per second, and float operations per second counted on the
- * interpreter) against the device's arithmetic rate (gpu_arith_rate), and
+ * interpreter) against the device's arithmetic rate (gpu_arith_rate) and
+ * against a hand-written kernel of the batch kernels' shading (ceiling.h:
+ * what that shading reaches at best on the device), and
  * each level's error against the final level and the final level's error
  * against `relight render` of the RIB edited the same way, in percent of
  * the 8-bit range after sRGB (mean and max).
@@ -26,6 +30,7 @@
  * printed, not asserted: machines here are noisy.
  */
 #include "benchutil.h"
+#include "ceiling.h"
 #include "gpu.h"
 #include "imgerr.h"
 #include "microbench.h"
@@ -45,11 +50,16 @@
 #define EDITS 9
 #define LEVELS GPU_SHOT_LEVELS
 
-static double now_ms(void)
+static double clock_ms(clockid_t c)
 {
 	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
+	clock_gettime(c, &t);
 	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+
+static double now_ms(void)
+{
+	return clock_ms(CLOCK_MONOTONIC);
 }
 
 /* Mean and max of |srgb(a) - srgb(b)| in percent of the range, over RGB (as relight diff). */
@@ -67,6 +77,8 @@ struct result {
 	double load_ms, full_ms, first_edit_ms;
 	double level_ms[LEVELS], total_ms;
 	uint64_t entries[LEVELS], shaded[LEVELS], samples;
+	uint32_t dispatches[LEVELS];    /* kernels an edit runs at each level */
+	double host_ms[LEVELS];         /* CPU time of the calling thread a level (median) */
 	double err_mean[LEVELS], err_max[LEVELS];
 	double render_mean, render_max;
 	struct gpu_shot_profile prof;
@@ -75,7 +87,7 @@ struct result {
 	bool ok;
 	/* while running */
 	struct gpu_shot *s;
-	double lv[LEVELS][EDITS], tot[EDITS];
+	double lv[LEVELS][EDITS], host[LEVELS][EDITS], tot[EDITS];
 	float v;
 };
 
@@ -122,12 +134,16 @@ static bool shot_edit(struct result *r, int e)
 	bool ok = gpu_shot_set(r->s, "1", "intensity", &r->v, 1, err, sizeof(err));
 	double sum = 0.0;
 	for (int L = 0; ok && L < LEVELS; L++) {
+		double c0 = clock_ms(CLOCK_THREAD_CPUTIME_ID);
 		ok = gpu_shot_render(r->s, L, &stt);
+		double host = clock_ms(CLOCK_THREAD_CPUTIME_ID) - c0;
 		sum += stt.ms;
 		if (e >= 0) {
 			r->lv[L][e] = stt.ms;
+			r->host[L][e] = host;
 			r->entries[L] = stt.entries;
 			r->shaded[L] = stt.shaded;
+			r->dispatches[L] = stt.dispatches;
 		}
 	}
 	if (e < 0)
@@ -145,8 +161,10 @@ static bool shot_finish(const char *relight, const char *dir, struct result *r)
 	int nlights = r->nlights;
 	float v = r->v;
 	bool ok = true;
-	for (int L = 0; L < LEVELS; L++)
+	for (int L = 0; L < LEVELS; L++) {
 		r->level_ms[L] = bench_median(r->lv[L], EDITS);
+		r->host_ms[L] = bench_median(r->host[L], EDITS);
+	}
 	r->total_ms = bench_median(r->tot, EDITS);
 	/* errors: each level against the final level, the final level against the renderer */
 	uint32_t W = gpu_shot_width(s), H = gpu_shot_height(s);
@@ -225,14 +243,18 @@ int main(int argc, char **argv)
 	ok = ok && shot_finish(relight, dir, &r[0]) && shot_finish(relight, dir, &r[1]);
 	gpu_shot_close(r[0].s);
 	gpu_shot_close(r[1].s);
+	struct ceiling ceil;
+	ok = ok && ceiling_run(ctx, (uint32_t)r[1].samples, 5, &ceil);
 	if (!ok) {
 		fprintf(stderr, "bench_runtime: failed\n");
 		gpu_destroy(ctx);
 		return 1;
 	}
 	if (json) {
-		printf("{\"device\": \"%s\", \"arith_flops\": %.4g, \"shots\": [", gpu_renderer(ctx),
-		       rate.flops);
+		printf("{\"device\": \"%s\", \"arith_flops\": %.4g, \"ceiling_ms\": %.3f, "
+		       "\"ceiling_flops_per_sample\": %.1f, \"ceiling_flops\": %.4g, "
+		       "\"ceiling_max_rel_err\": %.3g, \"shots\": [", gpu_renderer(ctx), rate.flops,
+		       ceil.ms, ceil.flops_per_sample, ceil.flops, ceil.max_rel_err);
 		for (int i = 0; i < 2; i++) {
 			const struct result *x = &r[i];
 			printf("%s{\"lights\": %d, \"samples\": %llu, \"gpu_bytes\": %zu, \"load_ms\": %.1f, "
@@ -253,9 +275,11 @@ int main(int argc, char **argv)
 			       x->point.batch_flops);
 			for (int L = 0; L < LEVELS; L++)
 				printf("%s{\"level\": %d, \"ms\": %.3f, \"entries\": %llu, \"shaded\": %llu, "
+				       "\"host_ms\": %.3f, \"dispatches\": %u, "
 				       "\"mean_pct\": %.4f, \"max_pct\": %.4f}", L ? ", " : "", L,
 				       x->level_ms[L], (unsigned long long)x->entries[L],
-				       (unsigned long long)x->shaded[L], x->err_mean[L], x->err_max[L]);
+				       (unsigned long long)x->shaded[L], x->host_ms[L], x->dispatches[L],
+				       x->err_mean[L], x->err_max[L]);
 			printf("]}");
 		}
 		printf("]}\n");
@@ -268,15 +292,16 @@ int main(int argc, char **argv)
 			       "light %.1f ms; first edit (light 1 leaves the cache) %.1f ms\n",
 			       x->nlights, x->nlights > 1 ? "s" : "", (unsigned long long)x->samples,
 			       (double)x->bytes / 1048576.0, x->load_ms, x->full_ms, x->first_edit_ms);
-			printf("  %-6s %10s %10s %10s %10s %16s\n", "level", "ms", "cumul ms",
-			       "entries", "shaded", "error vs final");
+			printf("  %-6s %10s %10s %10s %10s %10s %10s %16s\n", "level", "ms", "cumul ms",
+			       "host ms", "entries", "shaded", "kernels", "error vs final");
 			double cum = 0.0;
 			for (int L = 0; L < LEVELS; L++) {
 				cum += x->level_ms[L];
-				printf("  %-6d %10.2f %10.2f %10llu %10llu   %5.3f / %5.2f %%\n", L,
-				       x->level_ms[L], cum, (unsigned long long)x->entries[L],
-				       (unsigned long long)x->shaded[L], x->err_mean[L],
-				       x->err_max[L]);
+				printf("  %-6d %10.2f %10.2f %10.2f %10llu %10llu %10u   %5.3f / %5.2f %%\n",
+				       L, x->level_ms[L], cum, x->host_ms[L],
+				       (unsigned long long)x->entries[L],
+				       (unsigned long long)x->shaded[L], x->dispatches[L],
+				       x->err_mean[L], x->err_max[L]);
 			}
 			printf("  final level against relight render of the edited RIB: mean %.4f %%, "
 			       "max %.4f %%\n", x->render_mean, x->render_max);
@@ -299,6 +324,12 @@ int main(int argc, char **argv)
 			       p->batch_ms / p->batch_lights, p->batch_flops_per_sample,
 			       p->batch_flops * 1e-9, p->batch_flops / rate.flops);
 		}
+		printf("hand-written kernel of the same shading (ceiling.h: plastic, %d point lights, "
+		       "no guards), %u synthetic samples: %.2f ms = %.2f ms a light; %.0f "
+		       "flops/sample = %.1f GFLOP/s = %.2f of the arithmetic rate (max error against "
+		       "the CPU %.1e over %u samples)\n\n", CEILING_LIGHTS, ceil.samples, ceil.ms,
+		       ceil.ms / CEILING_LIGHTS, ceil.flops_per_sample, ceil.flops * 1e-9,
+		       ceil.flops / rate.flops, ceil.max_rel_err, ceil.checked);
 		printf("32 lights against 1, per level:");
 		for (int L = 0; L < LEVELS; L++)
 			printf(" %.2fx", r[1].level_ms[L] / r[0].level_ms[L]);
