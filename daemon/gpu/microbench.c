@@ -7,13 +7,13 @@
  */
 #include "microbench.h"
 
+#include "clock.h"
 #include "log.h"
 
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
-#include <time.h>
 
 #define UNROLL 4
 /* The exactness argument of microbench.h holds up to this many steps. */
@@ -24,13 +24,6 @@
 #define MAX_INVOCATIONS (1u << 24)
 /* Trips of the calibration run. */
 #define CAL_TRIPS 8u
-
-static double now_ms(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
 
 /* Append to @buf; an overflow leaves *len past @cap, which the caller checks. */
 static void put(char *buf, size_t cap, size_t *len, const char *fmt, ...)
@@ -99,12 +92,12 @@ static double timed_run(struct bench *b, uint32_t n, uint32_t trips, float *chec
 		return -1;
 	struct gpu_binding bd = { .unit = 0, .ssbo = true, .buffer = b->out };
 	float last;
-	double t0 = now_ms();
+	double t0 = rl_now_ms();
 	/* Reading a result waits for the dispatch to finish. */
 	if (!gpu_dispatch(b->ctx, b->prog, &bd, 1, n) ||
 	    !gpu_buffer_read(b->out, (size_t)(n - 1) * sizeof(float), sizeof(float), &last))
 		return -1;
-	double t = now_ms() - t0;
+	double t = rl_now_ms() - t0;
 	for (int c = 0; check && c < GPU_ARITH_CHECKS; c++) {
 		if (check_index[c] >= n)
 			check[c] = 0.0f;

@@ -26,6 +26,7 @@
 #include "runtime.h"
 
 #include "arena.h"
+#include "clock.h"
 #include "graph.h"
 #include "lighthost.h"
 #include "log.h"
@@ -44,7 +45,6 @@
 #include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
 #define DEFAULT_BUDGET ((size_t)2 << 30)
@@ -60,13 +60,6 @@
  * last light in the spare passes, which the accumulate leaves out.
  */
 #define BATCH GPU_SHOT_BATCH
-
-static double now_ms(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
 
 /* ------------------------------------------------------------------------ */
 /* State                                                                     */
@@ -1700,7 +1693,7 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	s->shader_path = opts && opts->shader_path ? rl_xstrdup(opts->shader_path) : NULL;
 	s->solo = -1;
 	s->graph = graph_create();
-	double t0 = now_ms();
+	double t0 = rl_now_ms();
 	char err[1024] = "";
 	struct shot_file *f = shot_read(path, err, sizeof(err));
 	if (!f) {
@@ -1824,7 +1817,7 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 		gpu_shot_close(s);
 		return NULL;
 	}
-	rl_log(RL_LOG_INFO, "%s: loaded in %.0f ms, %.1f MiB of GPU memory", path, now_ms() - t0,
+	rl_log(RL_LOG_INFO, "%s: loaded in %.0f ms, %.1f MiB of GPU memory", path, rl_now_ms() - t0,
 	       (double)s->bytes / 1048576.0);
 	return s;
 }
@@ -2223,12 +2216,12 @@ bool gpu_shot_render(struct gpu_shot *s, int level, struct gpu_shot_stats *st)
 	memset(st, 0, sizeof(*st));
 	if (level < 0 || level >= NBANDS)
 		return fail(s, "no refinement level %d (0 to %d)", level, NBANDS - 1);
-	double t0 = now_ms();
+	double t0 = rl_now_ms();
 	s->stats = st;
 	bool ok = graph_pull(s->graph, s->resolve[level]) && gpu_finish(s->ctx);
 	s->stats = NULL;
 	st->entries = s->level_entries[level];
-	st->ms = now_ms() - t0;
+	st->ms = rl_now_ms() - t0;
 	return ok;
 }
 
@@ -2422,11 +2415,11 @@ static double profile_batch(struct gpu_shot *s, struct surface *sf, struct light
 	};
 	double best = 1e30;
 	for (int r = 0; r < 3 && best >= 0; r++) {
-		double t0 = now_ms();
+		double t0 = rl_now_ms();
 		if (!gpu_finish(s->ctx) || !gpu_dispatch(s->ctx, k->prog, b, 3, (uint32_t)sf->nrows) ||
 		    !gpu_finish(s->ctx))
 			best = -1.0;
-		double t = now_ms() - t0;
+		double t = rl_now_ms() - t0;
 		best = best >= 0 && t < best ? t : best;
 	}
 	gpu_buffer_destroy(cache);
@@ -2475,14 +2468,14 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 			}
 			if (!gpu_finish(s->ctx))
 				return false;
-			double t0 = now_ms();
+			double t0 = rl_now_ms();
 			if (!gpu_dispatch(s->ctx, kk->prog, bb, kk == k ? nb : n0,
 					  (uint32_t)sf->nrows) ||
 			    !gpu_finish(s->ctx)) {
 				errorf(err, errlen, "running the kernel of '%s' failed", sf->name);
 				return false;
 			}
-			double t = now_ms() - t0;
+			double t = rl_now_ms() - t0;
 			if (kk == k)
 				best = t < best ? t : best;
 			else

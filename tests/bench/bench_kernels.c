@@ -23,13 +23,13 @@
  * nothing to keep (GL_NUM_PROGRAM_BINARY_FORMATS is 0).
  */
 #include "gpu.h"
+#include "clock.h"
 #include "spec.h"
 #include "config.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
 #define NSAMPLES (1u << 18)
@@ -39,13 +39,6 @@ static const char *const light_names[NLIGHTS] = {
 	"spotlight", "spotlight", "spotlight", "pointlight", "pointlight", "distantlight",
 	"uberlight", "shadowspot",
 };
-
-static double now_ms(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
 
 static struct sl_program *load(const char *dir, const char *name)
 {
@@ -88,9 +81,9 @@ static bool make(struct kernel *k, const struct sl_spec *s, const struct sl_prog
 /* Compile, bind buffers of random inputs and run once (the JIT happens at first use). */
 static bool build(struct gpu_ctx *ctx, struct kernel *k)
 {
-	double t0 = now_ms();
+	double t0 = rl_now_ms();
 	k->prog = gpu_program(ctx, k->glsl, NULL);
-	k->compile_ms = now_ms() - t0;
+	k->compile_ms = rl_now_ms() - t0;
 	if (!k->prog)
 		return false;
 	size_t nin = (size_t)k->layout.in_stride * NSAMPLES;
@@ -110,10 +103,10 @@ static bool build(struct gpu_ctx *ctx, struct kernel *k)
 		return false;
 	float one;
 	struct gpu_binding b[2] = { { 0, false, k->in, true }, { 1, true, k->out } };
-	t0 = now_ms();
+	t0 = rl_now_ms();
 	bool ok = gpu_dispatch(ctx, k->prog, b, 2, NSAMPLES) &&
 		  gpu_buffer_read(k->out, 0, sizeof(one), &one);
-	k->first_ms = now_ms() - t0;
+	k->first_ms = rl_now_ms() - t0;
 	return ok;
 }
 
@@ -123,10 +116,10 @@ static double run_ms(struct gpu_ctx *ctx, struct kernel *k)
 	double best = 1e30;
 	for (int r = 0; r < 5; r++) {
 		float one;
-		double t0 = now_ms();
+		double t0 = rl_now_ms();
 		gpu_dispatch(ctx, k->prog, b, 2, NSAMPLES);
 		gpu_buffer_read(k->out, 0, sizeof(one), &one);
-		double t = now_ms() - t0;
+		double t = rl_now_ms() - t0;
 		best = t < best ? t : best;
 	}
 	return best;

@@ -7,11 +7,11 @@
  * the sample table, as a bake lays them out) and random. Exit 77 without EGL.
  */
 #include "resolve.h"
+#include "clock.h"
 
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <time.h>
 
 enum { W = 960, H = 540, NSAMPLES = 500000, RUNS = 20 };
 
@@ -23,13 +23,6 @@ static uint64_t rng(void)
 	z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
 	z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
 	return z ^ (z >> 31);
-}
-
-static double now_ms(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
 }
 
 static int cmp_double(const void *a, const void *b)
@@ -50,7 +43,7 @@ static double time_it(struct gpu_ctx *ctx, const struct timing *t)
 	double ms[RUNS];
 	uint32_t word;
 	for (int r = -1; r < RUNS; r++) {
-		double s = now_ms();
+		double s = rl_now_ms();
 		bool ok = t->level >= 0
 			  ? gpu_ifb_resolve(t->f, t->colors, NSAMPLES, t->level, t->rgba) &&
 			    gpu_buffer_read(t->rgba, 0, 4, &word)
@@ -59,7 +52,7 @@ static double time_it(struct gpu_ctx *ctx, const struct timing *t)
 		if (!ok)
 			return -1;
 		if (r >= 0)
-			ms[r] = now_ms() - s;
+			ms[r] = rl_now_ms() - s;
 	}
 	qsort(ms, RUNS, sizeof(ms[0]), cmp_double);
 	return 0.5 * (ms[RUNS / 2 - 1] + ms[RUNS / 2]);
@@ -119,9 +112,9 @@ static int run(struct gpu_ctx *ctx, bool coherent)
 		d.level_weight[L] = lweight[L];
 	}
 	char err[256];
-	double t0 = now_ms();
+	double t0 = rl_now_ms();
 	struct timing t = { .f = gpu_ifb_create(ctx, &d, err, sizeof(err)) };
-	double create_ms = now_ms() - t0;
+	double create_ms = rl_now_ms() - t0;
 	t.colors = gpu_buffer_create(ctx, (size_t)NSAMPLES * 3 * sizeof(float), colors);
 	t.rgba = gpu_buffer_create(ctx, npix * 4 * sizeof(float), NULL);
 	t.rgba8 = gpu_buffer_create(ctx, npix * sizeof(uint32_t), NULL);

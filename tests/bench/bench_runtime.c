@@ -31,6 +31,7 @@
  */
 #include "benchutil.h"
 #include "ceiling.h"
+#include "clock.h"
 #include "gpu.h"
 #include "imgerr.h"
 #include "microbench.h"
@@ -44,23 +45,10 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <time.h>
 #include <unistd.h>
 
 #define EDITS 9
 #define LEVELS GPU_SHOT_LEVELS
-
-static double clock_ms(clockid_t c)
-{
-	struct timespec t;
-	clock_gettime(c, &t);
-	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
-
-static double now_ms(void)
-{
-	return clock_ms(CLOCK_MONOTONIC);
-}
 
 /* Mean and max of |srgb(a) - srgb(b)| in percent of the range, over RGB (as relight diff). */
 static void image_error(const float *a, const float *b, uint32_t w, uint32_t h, double *mean,
@@ -111,12 +99,12 @@ static bool shot_open(struct gpu_ctx *ctx, const char *relight, const char *dir,
 		if (system(cmd) != 0)
 			return false;
 	}
-	double t0 = now_ms();
+	double t0 = rl_now_ms();
 	struct gpu_shot_opts o = { .diag = stderr };
 	r->s = gpu_shot_open(ctx, shot, &o);
 	if (!r->s)
 		return false;
-	r->load_ms = now_ms() - t0;
+	r->load_ms = rl_now_ms() - t0;
 	r->samples = gpu_shot_samples(r->s);
 	r->bytes = gpu_shot_bytes(r->s);
 	struct gpu_shot_stats stt;
@@ -134,9 +122,9 @@ static bool shot_edit(struct result *r, int e)
 	bool ok = gpu_shot_set(r->s, "1", "intensity", &r->v, 1, err, sizeof(err));
 	double sum = 0.0;
 	for (int L = 0; ok && L < LEVELS; L++) {
-		double c0 = clock_ms(CLOCK_THREAD_CPUTIME_ID);
+		double c0 = rl_thread_cpu_ms();
 		ok = gpu_shot_render(r->s, L, &stt);
-		double host = clock_ms(CLOCK_THREAD_CPUTIME_ID) - c0;
+		double host = rl_thread_cpu_ms() - c0;
 		sum += stt.ms;
 		if (e >= 0) {
 			r->lv[L][e] = stt.ms;

@@ -2,12 +2,12 @@
  * The shading kernels' yardstick: see ceiling.h.
  */
 #include "ceiling.h"
+#include "clock.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #define TEXELS 6                 /* RGBA32F texels a sample */
 #define FLOATS (TEXELS * 4)
@@ -75,13 +75,6 @@ static const char kernel_src[] =
 	"\tcache[id + 1] = acc.y;\n"
 	"\tcache[id + 2] = acc.z;\n"
 	"}\n";
-
-static double now_ms(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
 
 /* A uniform number in [lo, hi) from a 32-bit LCG. */
 static float uniform(uint32_t *s, float lo, float hi)
@@ -228,9 +221,9 @@ bool ceiling_run(struct gpu_ctx *ctx, uint32_t samples, uint32_t runs, struct ce
 	double best = INFINITY;
 	for (uint32_t r = 0; ok && r < runs; r++) {
 		ok = gpu_finish(ctx);
-		double t = now_ms();
+		double t = rl_now_ms();
 		ok = ok && gpu_dispatch(ctx, p, b, 3, samples) && gpu_finish(ctx);
-		best = fmin(best, now_ms() - t);
+		best = fmin(best, rl_now_ms() - t);
 	}
 	if (ok) {
 		out->samples = samples;

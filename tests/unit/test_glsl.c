@@ -15,6 +15,7 @@
  * generator-only tests have run.
  */
 #include "glsl.h"
+#include "clock.h"
 #include "spec.h"
 #include "gpu.h"
 #include "exec.h"
@@ -27,7 +28,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
 #define NPTS 256
@@ -39,13 +39,6 @@ static bool have_validator = true;
 
 /* ------------------------------------------------------------------------ */
 /* Small helpers                                                             */
-
-static double now_ms(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
 
 static uint32_t rng_state = 12345u;
 
@@ -343,9 +336,9 @@ static bool xc_cpu(struct xc *c)
 	lh.space_mats = (const float (*)[16])space_mats;
 	lh.nspaces = 3;
 	lh.light_shader_mats = (const float (*)[16])light_mats;
-	double t0 = now_ms();
+	double t0 = rl_now_ms();
 	bool ok = sl_exec_run(x, &lh.host);
-	c->cpu_ms = now_ms() - t0;
+	c->cpu_ms = rl_now_ms() - t0;
 	/* The parameters' values at the start of a run, for the uniforms. */
 	for (int i = 0; i <= c->nl; i++) {
 		struct space_host sh = { .host = { .space = sh_space }, .shader = NULL };
@@ -465,9 +458,9 @@ static double xc_gpu(struct xc *c, const char *const *outs, int nouts, double to
 	double maxerr = -1;
 	if (!ctx)
 		goto out;
-	double t0 = now_ms();
+	double t0 = rl_now_ms();
 	struct gpu_program *gp = gpu_program(ctx, src, stderr);
-	c->compile_ms = now_ms() - t0;
+	c->compile_ms = rl_now_ms() - t0;
 	CHECK(gp != NULL);
 	if (!gp)
 		goto out;
@@ -504,10 +497,10 @@ static double xc_gpu(struct xc *c, const char *const *outs, int nouts, double to
 	float *out = calloc(nout, sizeof(float));
 	struct gpu_binding b[2] = { { 0, false, bin, true }, { 1, true, bout } };
 	CHECK(gpu_dispatch(ctx, gp, b, 2, n));
-	t0 = now_ms();
+	t0 = rl_now_ms();
 	CHECK(gpu_dispatch(ctx, gp, b, 2, n));
 	CHECK(gpu_buffer_read(bout, 0, nout * sizeof(float), out));
-	c->gpu_ms = now_ms() - t0;
+	c->gpu_ms = rl_now_ms() - t0;
 	maxerr = 0;
 	int reported = 0;
 	for (int kp = 0; kp < nouts * (int)npass; kp++) {
@@ -1628,9 +1621,9 @@ static void test_too_large(void)
 	struct sl_program *lp = load("pointlight");
 	CHECK(sp && lp);
 	if (sp && lp) {
-		double t0 = now_ms();
+		double t0 = rl_now_ms();
 		expect_emit_error(sp, lp, MAXL, "the generated GLSL is too large");
-		double ms = now_ms() - t0;
+		double ms = rl_now_ms() - t0;
 		printf("nested illuminance over %d lights refused after %.0f ms\n", MAXL, ms);
 		CHECK(ms < 20000);
 	}

@@ -7,6 +7,7 @@
  * without EGL.
  */
 #include "gpu.h"
+#include "clock.h"
 #include "microbench.h"
 #include "test.h"
 
@@ -15,17 +16,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
 
 static struct gpu_ctx *ctx;
-
-static double now_ms(void)
-{
-	struct timespec t;
-	clock_gettime(CLOCK_MONOTONIC, &t);
-	return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
 
 static int cmp_double(const void *a, const void *b)
 {
@@ -96,10 +89,10 @@ static void square(const char *src, uint32_t n, bool timed)
 		{ .unit = 0, .ssbo = false, .buffer = bin },
 		{ .unit = 1, .ssbo = true, .buffer = bout },
 	};
-	double t0 = now_ms();
+	double t0 = rl_now_ms();
 	CHECK(gpu_dispatch(ctx, p, b, 2, n));
 	CHECK(gpu_buffer_read(bout, 0, (n + 64) * sizeof(float), out));
-	double first = now_ms() - t0;
+	double first = rl_now_ms() - t0;
 	uint32_t wrong = 0, first_wrong = 0;
 	for (uint32_t i = 0; i < n; i++) {
 		if (out[i] != in[i] * in[i] && !wrong++)
@@ -119,10 +112,10 @@ static void square(const char *src, uint32_t n, bool timed)
 		double t[7];
 		float one;
 		for (int r = 0; r < 7; r++) {
-			double s = now_ms();
+			double s = rl_now_ms();
 			gpu_dispatch(ctx, p, b, 2, n);
 			gpu_buffer_read(bout, 0, sizeof(one), &one);
-			t[r] = now_ms() - s;
+			t[r] = rl_now_ms() - s;
 		}
 		double m = median(t, 7);
 		printf("square of %u floats: first run %.2f ms (with readback of %.1f MB), kernel "
@@ -394,9 +387,9 @@ static void test_disk_cache(void)
 		if (!c)
 			break;
 		gpu_set_program_cache(c, dir);
-		double t0 = now_ms();
+		double t0 = rl_now_ms();
 		struct gpu_program *p = gpu_program(c, src, NULL);
-		double ms = now_ms() - t0;
+		double ms = rl_now_ms() - t0;
 		CHECK(p != NULL);
 		unsigned hits, compiled;
 		gpu_program_stats(c, &hits, &compiled);
@@ -549,11 +542,11 @@ static void test_overhead(void)
 	enum { RUNS = 201 };
 	static double issue[RUNS], round[RUNS];
 	for (int r = 0; r < RUNS; r++) {
-		double t0 = now_ms();
+		double t0 = rl_now_ms();
 		gpu_dispatch(ctx, p, b, 2, 64);
-		double t1 = now_ms();
+		double t1 = rl_now_ms();
 		gpu_buffer_read(bout, 0, sizeof(out), out);
-		round[r] = now_ms() - t0;
+		round[r] = rl_now_ms() - t0;
 		issue[r] = t1 - t0;
 	}
 	CHECK(out[63] == 63.0f * 63.0f);
@@ -715,9 +708,9 @@ static void check_arith_kernel(const struct gpu_arith_rate *r, const struct gpu_
 static void test_arith_rate(void)
 {
 	struct gpu_arith_rate r;
-	double t0 = now_ms();
+	double t0 = rl_now_ms();
 	bool ok = gpu_arith_rate(ctx, 3, 20.0, &r);
-	double wall = now_ms() - t0;
+	double wall = rl_now_ms() - t0;
 	CHECK(ok);
 	if (!ok)
 		return;
