@@ -4,6 +4,7 @@
 #include "proto.h"
 
 #include <cjson/cJSON.h>
+#include <ctype.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -225,9 +226,15 @@ static bool parse_body(const cJSON *o, const struct proto_limits *lim, struct pr
 		return need_string(o, "light", ms, op, &r->light, e) &&
 		       params(o, op, true, lim, r, e);
 	case PROTO_ADD_LIGHT:
-		return need_string(o, "light", ms, op, &r->light, e) &&
-		       need_string(o, "shader", ms, op, &r->shader, e) &&
-		       params(o, op, false, lim, r, e);
+		if (!need_string(o, "light", ms, op, &r->light, e) ||
+		    !need_string(o, "shader", ms, op, &r->shader, e))
+			return false;
+		/* One message for every name that is not a shader's: nothing tells the
+		 * client what lies outside the shader path. */
+		if (!proto_shader_name_ok(r->shader))
+			return set_error(e, PROTO_E_RANGE, "add_light: 'shader' must be a shader's "
+					 "name (a letter or '_', then letters, digits, '_'), not a path");
+		return params(o, op, false, lim, r, e);
 	case PROTO_REMOVE_LIGHT:
 		return need_string(o, "light", ms, op, &r->light, e);
 	case PROTO_SOLO:
@@ -327,6 +334,60 @@ static bool escaped_nul(const char *s, size_t n)
 	return false;
 }
 
+bool proto_shader_name_ok(const char *name)
+{
+	if (!name || !(isalpha((unsigned char)name[0]) || name[0] == '_'))
+		return false;
+	for (const char *p = name + 1; *p; p++)
+		if (!isalnum((unsigned char)*p) && *p != '_')
+			return false;
+	return true;
+}
+
+static int compare_keys(const void *a, const void *b)
+{
+	return strcmp(*(const char *const *)a, *(const char *const *)b);
+}
+
+/*
+ * The first member name that @v or a value inside it holds twice, or NULL.
+ * cJSON keeps every member and lookups find the first; a proxy reading the
+ * same text may keep the last, so a repeated name is refused, not resolved.
+ * Sorting the names makes a large object cost n log n, not n^2.
+ */
+static const char *repeated_key(const cJSON *v, bool *nomem)
+{
+	if (!cJSON_IsObject(v) && !cJSON_IsArray(v))
+		return NULL;
+	size_t n = 0;
+	for (const cJSON *x = v->child; x; x = x->next)
+		n++;
+	if (cJSON_IsObject(v) && n > 1) {
+		const char **keys = malloc(n * sizeof(*keys));
+		if (!keys) {
+			*nomem = true;
+			return NULL;
+		}
+		size_t k = 0;
+		for (const cJSON *x = v->child; x; x = x->next)
+			keys[k++] = x->string ? x->string : "";
+		qsort(keys, n, sizeof(*keys), compare_keys);
+		const char *dup = NULL;
+		for (size_t i = 1; i < n && !dup; i++)
+			if (!strcmp(keys[i - 1], keys[i]))
+				dup = keys[i];
+		free(keys);
+		if (dup)
+			return dup;
+	}
+	for (const cJSON *x = v->child; x; x = x->next) {
+		const char *dup = repeated_key(x, nomem);
+		if (dup || *nomem)
+			return dup;
+	}
+	return NULL;
+}
+
 bool proto_parse_request(const char *text, size_t len, const struct proto_limits *lim,
 			 struct proto_request *out, struct proto_error *err)
 {
@@ -346,9 +407,17 @@ bool proto_parse_request(const char *text, size_t len, const struct proto_limits
 	out->priv = o;
 	while (end && end < text + len && (*end == ' ' || *end == '\t' || *end == '\r' || *end == '\n'))
 		end++;
-	bool ok = true;
+	bool ok = true, nomem = false;
+	const char *dup = NULL;
 	if (!cJSON_IsObject(o))
 		ok = set_error(err, PROTO_E_MALFORMED, "a request is a JSON object");
+	else if ((dup = repeated_key(o, &nomem)) != NULL) {
+		char shown[40];
+		snprintf(shown, sizeof(shown), "%s", dup);
+		ok = set_error(err, PROTO_E_MALFORMED, "the member '%s' appears twice in one object",
+			       shown);
+	} else if (nomem)
+		ok = set_error(err, PROTO_E_INTERNAL, "out of memory");
 	/* Checked after the parse so that the reply can carry the request's id. */
 	bool text_ok = valid_utf8((const unsigned char *)text, len) && !escaped_nul(text, len) &&
 		       !(end && end < text + len);
@@ -396,6 +465,7 @@ void proto_request_free(struct proto_request *r)
 	if (!r)
 		return;
 	free(r->params);
+	free(r->owned);
 	cJSON_Delete(r->priv);
 	memset(r, 0, sizeof(*r));
 }
@@ -492,4 +562,429 @@ bool proto_tile_parse(const uint8_t *buf, size_t len, struct proto_tile *t,
 	}
 	*pixels = buf + PROTO_TILE_HEADER_BYTES;
 	return true;
+}
+
+/* ---- before hello ---- */
+
+/*
+ * A reader of the one flat object a client sends before hello. It keeps the
+ * four members that matter then (op, id, version, token) and steps over any
+ * other value without building it, so an unauthenticated peer costs a scan
+ * of at most PROTO_PREAUTH_MAX bytes and no allocation but the token's copy.
+ */
+struct scan {
+	const char *p, *end;
+	char *scratch;         /* decoded strings go here, one after another */
+	size_t used, cap;
+};
+
+enum scalar_kind { V_NONE, V_STRING, V_NUMBER, V_TRUE, V_FALSE, V_NULL, V_NESTED };
+
+struct scalar {
+	enum scalar_kind kind;
+	const char *s;         /* V_STRING: decoded, NUL-terminated, in scratch */
+	size_t len;
+	double number;
+};
+
+static void skip_ws(struct scan *sc)
+{
+	while (sc->p < sc->end && (*sc->p == ' ' || *sc->p == '\t' || *sc->p == '\n' ||
+				   *sc->p == '\r'))
+		sc->p++;
+}
+
+static int hex_digit(char c)
+{
+	return c >= '0' && c <= '9' ? c - '0' : c >= 'a' && c <= 'f' ? c - 'a' + 10 :
+	       c >= 'A' && c <= 'F' ? c - 'A' + 10 : -1;
+}
+
+static bool hex4(struct scan *sc, uint32_t *out)
+{
+	if (sc->end - sc->p < 4)
+		return false;
+	uint32_t v = 0;
+	for (int i = 0; i < 4; i++) {
+		int d = hex_digit(sc->p[i]);
+		if (d < 0)
+			return false;
+		v = v << 4 | (uint32_t)d;
+	}
+	sc->p += 4;
+	*out = v;
+	return true;
+}
+
+static bool put_byte(struct scan *sc, unsigned char b)
+{
+	if (sc->used + 1 >= sc->cap)
+		return false;
+	sc->scratch[sc->used++] = (char)b;
+	return true;
+}
+
+static bool put_code_point(struct scan *sc, uint32_t cp)
+{
+	if (cp < 0x80)
+		return put_byte(sc, (unsigned char)cp);
+	if (cp < 0x800)
+		return put_byte(sc, (unsigned char)(0xc0 | cp >> 6)) &&
+		       put_byte(sc, (unsigned char)(0x80 | (cp & 0x3f)));
+	if (cp < 0x10000)
+		return put_byte(sc, (unsigned char)(0xe0 | cp >> 12)) &&
+		       put_byte(sc, (unsigned char)(0x80 | ((cp >> 6) & 0x3f))) &&
+		       put_byte(sc, (unsigned char)(0x80 | (cp & 0x3f)));
+	return put_byte(sc, (unsigned char)(0xf0 | cp >> 18)) &&
+	       put_byte(sc, (unsigned char)(0x80 | ((cp >> 12) & 0x3f))) &&
+	       put_byte(sc, (unsigned char)(0x80 | ((cp >> 6) & 0x3f))) &&
+	       put_byte(sc, (unsigned char)(0x80 | (cp & 0x3f)));
+}
+
+/*
+ * string := '"' { char | '\' ( '"' | '\' | '/' | 'b' | 'f' | 'n' | 'r' | 't' | 'u' hex4 ) } '"'
+ * Decoded into scratch when @keep (a \u pair of surrogates is one code point).
+ */
+static bool scan_string(struct scan *sc, bool keep, struct scalar *v)
+{
+	if (sc->p >= sc->end || *sc->p != '"')
+		return false;
+	sc->p++;
+	size_t start = sc->used;
+	while (sc->p < sc->end && *sc->p != '"') {
+		unsigned char c = (unsigned char)*sc->p++;
+		if (c < 0x20)
+			return false;
+		if (c != '\\') {
+			if (keep && !put_byte(sc, c))
+				return false;
+			continue;
+		}
+		if (sc->p >= sc->end)
+			return false;
+		char e = *sc->p++;
+		uint32_t cp;
+		switch (e) {
+		case '"': case '\\': case '/': cp = (uint32_t)e; break;
+		case 'b': cp = '\b'; break;
+		case 'f': cp = '\f'; break;
+		case 'n': cp = '\n'; break;
+		case 'r': cp = '\r'; break;
+		case 't': cp = '\t'; break;
+		case 'u': {
+			if (!hex4(sc, &cp) || (cp >= 0xdc00 && cp <= 0xdfff))
+				return false;
+			if (cp >= 0xd800 && cp <= 0xdbff) {
+				uint32_t lo;
+				if (sc->end - sc->p < 2 || sc->p[0] != '\\' || sc->p[1] != 'u')
+					return false;
+				sc->p += 2;
+				if (!hex4(sc, &lo) || lo < 0xdc00 || lo > 0xdfff)
+					return false;
+				cp = 0x10000 + ((cp - 0xd800) << 10) + (lo - 0xdc00);
+			}
+			break;
+		}
+		default:
+			return false;
+		}
+		if (keep && !put_code_point(sc, cp))
+			return false;
+	}
+	if (sc->p >= sc->end)
+		return false;
+	sc->p++;
+	if (keep) {
+		if (!put_byte(sc, 0))
+			return false;
+		v->kind = V_STRING;
+		v->s = sc->scratch + start;
+		v->len = sc->used - start - 1;
+	}
+	return true;
+}
+
+/* number := [ '-' ] ( '0' | digit1-9 { digit } ) [ '.' digit { digit } ] [ ( 'e' | 'E' ) [ '+' | '-' ] digit { digit } ] */
+static bool scan_number(struct scan *sc, struct scalar *v)
+{
+	const char *b = sc->p, *q = sc->p;
+	if (q < sc->end && *q == '-')
+		q++;
+	if (q >= sc->end || !isdigit((unsigned char)*q))
+		return false;
+	if (*q == '0')
+		q++;
+	else
+		while (q < sc->end && isdigit((unsigned char)*q))
+			q++;
+	if (q < sc->end && *q == '.') {
+		q++;
+		if (q >= sc->end || !isdigit((unsigned char)*q))
+			return false;
+		while (q < sc->end && isdigit((unsigned char)*q))
+			q++;
+	}
+	if (q < sc->end && (*q == 'e' || *q == 'E')) {
+		q++;
+		if (q < sc->end && (*q == '+' || *q == '-'))
+			q++;
+		if (q >= sc->end || !isdigit((unsigned char)*q))
+			return false;
+		while (q < sc->end && isdigit((unsigned char)*q))
+			q++;
+	}
+	/* cJSON reads at most 63 characters of a number; so does this. */
+	char buf[64];
+	size_t n = (size_t)(q - b);
+	if (n >= sizeof(buf))
+		return false;
+	memcpy(buf, b, n);
+	buf[n] = '\0';
+	v->kind = V_NUMBER;
+	v->number = strtod(buf, NULL);
+	sc->p = q;
+	return true;
+}
+
+static bool scan_word(struct scan *sc, const char *w)
+{
+	size_t n = strlen(w);
+	if ((size_t)(sc->end - sc->p) < n || memcmp(sc->p, w, n))
+		return false;
+	sc->p += n;
+	return true;
+}
+
+/*
+ * value := string | number | 'true' | 'false' | 'null' | object | array
+ * Objects and arrays are stepped over, @depth levels at most; strings are
+ * decoded only when @keep.
+ */
+static bool scan_value(struct scan *sc, bool keep, int depth, struct scalar *v)
+{
+	v->kind = V_NONE;
+	if (sc->p >= sc->end)
+		return false;
+	char c = *sc->p;
+	if (c == '"')
+		return scan_string(sc, keep, v);
+	if (c == '-' || isdigit((unsigned char)c))
+		return scan_number(sc, v);
+	if (c == 't')
+		return (v->kind = V_TRUE, scan_word(sc, "true"));
+	if (c == 'f')
+		return (v->kind = V_FALSE, scan_word(sc, "false"));
+	if (c == 'n')
+		return (v->kind = V_NULL, scan_word(sc, "null"));
+	if ((c != '{' && c != '[') || depth <= 0)
+		return false;
+	char close = c == '{' ? '}' : ']';
+	sc->p++;
+	skip_ws(sc);
+	if (sc->p < sc->end && *sc->p == close) {
+		sc->p++;
+		v->kind = V_NESTED;
+		return true;
+	}
+	for (;;) {
+		struct scalar inner;
+		skip_ws(sc);
+		if (c == '{') {
+			if (!scan_string(sc, false, &inner))
+				return false;
+			skip_ws(sc);
+			if (sc->p >= sc->end || *sc->p++ != ':')
+				return false;
+			skip_ws(sc);
+		}
+		if (!scan_value(sc, false, depth - 1, &inner))
+			return false;
+		skip_ws(sc);
+		if (sc->p >= sc->end)
+			return false;
+		if (*sc->p == close) {
+			sc->p++;
+			v->kind = V_NESTED;
+			return true;
+		}
+		if (*sc->p++ != ',')
+			return false;
+	}
+}
+
+/* Member names at the top level, decoded, for the repeated-name check. */
+#define PREAUTH_KEYS 256
+
+bool proto_parse_preauth(const char *text, size_t len, struct proto_request *out,
+			 struct proto_error *err)
+{
+	memset(out, 0, sizeof(*out));
+	memset(err, 0, sizeof(*err));
+	if (!text)
+		return set_error(err, PROTO_E_MALFORMED, "empty message");
+	if (len > PROTO_PREAUTH_MAX)
+		return set_error(err, PROTO_E_LIMIT, "a message before hello is at most %d bytes; "
+				 "this one has %zu", PROTO_PREAUTH_MAX, len);
+	/* Decoded text is never longer than its source. */
+	char scratch[PROTO_PREAUTH_MAX + 1];
+	const char *keys[PREAUTH_KEYS];
+	size_t nkeys = 0;
+	struct scan sc = { .p = text, .end = text + len, .scratch = scratch, .cap = sizeof(scratch) };
+	struct scalar op = { 0 }, id = { 0 }, version = { 0 }, token = { 0 };
+	bool ok = true, nested_top = false;
+
+	/* request := ws '{' ws [ member { ws ',' ws member } ] ws '}' ws ;  member := string ws ':' ws value */
+	skip_ws(&sc);
+	if (sc.p < sc.end && *sc.p == '{') {
+		sc.p++;
+		skip_ws(&sc);
+		if (sc.p < sc.end && *sc.p == '}') {
+			sc.p++;
+		} else {
+			for (;;) {
+				struct scalar key, v;
+				skip_ws(&sc);
+				if (!scan_string(&sc, true, &key)) {
+					ok = false;
+					break;
+				}
+				skip_ws(&sc);
+				if (sc.p >= sc.end || *sc.p++ != ':') {
+					ok = false;
+					break;
+				}
+				skip_ws(&sc);
+				struct scalar *slot = !strcmp(key.s, "op") ? &op :
+						      !strcmp(key.s, "id") ? &id :
+						      !strcmp(key.s, "version") ? &version :
+						      !strcmp(key.s, "token") ? &token : NULL;
+				if (!scan_value(&sc, slot != NULL, 64, &v)) {
+					ok = false;
+					break;
+				}
+				if (slot)
+					*slot = v;
+				if (nkeys == PREAUTH_KEYS) {
+					ok = set_error(err, PROTO_E_LIMIT, "a message before hello has at "
+						       "most %d members", PREAUTH_KEYS);
+					break;
+				}
+				keys[nkeys++] = key.s;
+				skip_ws(&sc);
+				if (sc.p < sc.end && *sc.p == '}') {
+					sc.p++;
+					break;
+				}
+				if (sc.p >= sc.end || *sc.p++ != ',') {
+					ok = false;
+					break;
+				}
+			}
+		}
+		skip_ws(&sc);
+		if (ok && sc.p != sc.end)
+			return set_error(err, PROTO_E_MALFORMED, "not one JSON object of UTF-8 text "
+					 "(no NUL, nothing after it)");
+		if (!ok)
+			return err->code ? false : set_error(err, PROTO_E_MALFORMED, "not JSON");
+	} else {
+		struct scalar v;
+		ok = scan_value(&sc, false, 64, &v);
+		skip_ws(&sc);
+		if (!ok || sc.p != sc.end)
+			return set_error(err, PROTO_E_MALFORMED, "not JSON");
+		nested_top = true;
+	}
+	if (nested_top)
+		return set_error(err, PROTO_E_MALFORMED, "a request is a JSON object");
+	qsort(keys, nkeys, sizeof(*keys), compare_keys);
+	for (size_t i = 1; i < nkeys; i++) {
+		if (!strcmp(keys[i - 1], keys[i])) {
+			char shown[40];
+			snprintf(shown, sizeof(shown), "%s", keys[i]);
+			return set_error(err, PROTO_E_MALFORMED, "the member '%s' appears twice in one "
+					 "object", shown);
+		}
+	}
+	/* The same order of checks as proto_parse_request, so the replies match. */
+	if (id.kind != V_NONE) {
+		if (id.kind != V_NUMBER || id.number != floor(id.number) || fabs(id.number) > MAX_ID)
+			return set_error(err, PROTO_E_TYPE, "'id' must be a whole number within 2^53");
+		out->has_id = err->has_id = true;
+		out->id = err->id = (int64_t)id.number;
+	}
+	if (!valid_utf8((const unsigned char *)text, len) || escaped_nul(text, len))
+		return set_error(err, PROTO_E_MALFORMED, "not one JSON object of UTF-8 text (no NUL, "
+				 "nothing after it)");
+	if (op.kind != V_STRING)
+		return set_error(err, PROTO_E_MALFORMED, "a request needs 'op', a string");
+	int k = 0;
+	while (k < PROTO_OP_COUNT && strcmp(op_names[k], op.s))
+		k++;
+	if (k == PROTO_OP_COUNT) {
+		char shown[40];
+		snprintf(shown, sizeof(shown), "%s", op.s);
+		return set_error(err, PROTO_E_UNKNOWN_OP, "unknown op '%s'", shown);
+	}
+	out->op = (enum proto_op)k;
+	if (out->op != PROTO_HELLO)
+		return true;     /* the caller answers "say hello first" */
+	if (version.kind != V_NUMBER || version.number != floor(version.number) ||
+	    version.number < 0 || version.number > 1e6)
+		return set_error(err, PROTO_E_TYPE, "hello needs 'version', a whole number (this "
+				 "server speaks %d)", PROTO_VERSION);
+	out->version = (int)version.number;
+	if (out->version != PROTO_VERSION)
+		return set_error(err, PROTO_E_RANGE, "protocol version %d; this server speaks %d",
+				 out->version, PROTO_VERSION);
+	if (token.kind == V_NONE || token.kind == V_NULL)
+		return true;
+	if (token.kind != V_STRING)
+		return set_error(err, PROTO_E_TYPE, "hello: 'token' must be a string");
+	if (token.len > 256)
+		return set_error(err, PROTO_E_LIMIT, "hello: 'token' is longer than 256 bytes");
+	out->owned = malloc(token.len + 1);
+	if (!out->owned)
+		return set_error(err, PROTO_E_INTERNAL, "out of memory");
+	memcpy(out->owned, token.s, token.len + 1);
+	out->token = out->owned;
+	return true;
+}
+
+/* ---- reassembly ---- */
+
+void proto_rx_finish(struct proto_rx *rx)
+{
+	if (!rx)
+		return;
+	free(rx->buf);
+	memset(rx, 0, sizeof(*rx));
+}
+
+enum proto_rx_result proto_rx_feed(struct proto_rx *rx, const void *data, size_t len, bool first,
+				   bool final, size_t max)
+{
+	if (rx->too_big)
+		return PROTO_RX_DISCARD;
+	if (first)
+		rx->len = 0;
+	if (len > max || rx->len > max - len) {
+		rx->too_big = true;
+		return PROTO_RX_TOO_BIG;
+	}
+	if (rx->len + len + 1 > rx->cap) {
+		size_t cap = rx->cap ? rx->cap : 4096;
+		while (cap < rx->len + len + 1)
+			cap *= 2;
+		char *buf = realloc(rx->buf, cap);
+		if (!buf)
+			return PROTO_RX_NOMEM;
+		rx->buf = buf;
+		rx->cap = cap;
+	}
+	if (len)
+		memcpy(rx->buf + rx->len, data, len);
+	rx->len += len;
+	rx->buf[rx->len] = '\0';
+	return final ? PROTO_RX_MESSAGE : PROTO_RX_MORE;
 }

@@ -98,6 +98,7 @@ struct proto_request {
 	struct proto_param *params;   /* set, add_light */
 	uint32_t nparams;
 	void *priv;
+	char *owned;
 };
 
 /**
@@ -109,6 +110,55 @@ struct proto_request {
 bool proto_parse_request(const char *text, size_t len, const struct proto_limits *lim,
 			 struct proto_request *out, struct proto_error *err);
 void proto_request_free(struct proto_request *r);
+
+/** Bytes a message may hold before its connection's hello is accepted. */
+#define PROTO_PREAUTH_MAX 4096
+
+/**
+ * Read a message sent before hello: only far enough to know its op and, for
+ * a hello, its id, version and token, checked as proto_parse_request checks
+ * them. The text must be one flat JSON object of at most PROTO_PREAUTH_MAX
+ * bytes; other members are stepped over, never built into a tree. A request
+ * other than hello comes back with its op and id only (the caller refuses
+ * it). False with @err filled as proto_parse_request does.
+ */
+bool proto_parse_preauth(const char *text, size_t len, struct proto_request *out,
+			 struct proto_error *err);
+
+/**
+ * Whether @name is a shader's name as add_light takes it: a letter or '_',
+ * then letters, digits and '_'. No path: no '/', no '.', nothing leading.
+ */
+bool proto_shader_name_ok(const char *name);
+
+/* ---- reassembling messages from fragments ---- */
+
+/** A message being put together from the fragments (or inflated chunks) it arrives in. */
+struct proto_rx {
+	char *buf;               /* the message so far, NUL-terminated */
+	size_t len, cap;
+	bool too_big;            /* it passed the limit: everything more is discarded */
+};
+
+enum proto_rx_result {
+	PROTO_RX_MORE,           /* appended; the message goes on */
+	PROTO_RX_MESSAGE,        /* appended; buf holds a whole message of len bytes */
+	PROTO_RX_TOO_BIG,        /* this chunk took the message past @max (said once) */
+	PROTO_RX_DISCARD,        /* after TOO_BIG: dropped unread */
+	PROTO_RX_NOMEM,
+};
+
+/**
+ * Append @len bytes of @data to @rx: @first starts a message (what was there
+ * is dropped), @final ends it. A message over @max bytes is refused once
+ * with PROTO_RX_TOO_BIG, before anything past @max is stored; every later
+ * call answers PROTO_RX_DISCARD. The buffer grows to the message's size
+ * (at most @max + 1 bytes) only as data arrives.
+ */
+enum proto_rx_result proto_rx_feed(struct proto_rx *rx, const void *data, size_t len, bool first,
+				   bool final, size_t max);
+/** Free @rx's buffer (NULL allowed). */
+void proto_rx_finish(struct proto_rx *rx);
 
 struct cJSON;
 

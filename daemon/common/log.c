@@ -1,6 +1,11 @@
 #include "log.h"
 
+#include "clock.h"
+
+#include <pthread.h>
+
 #include <stdarg.h>
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,17 +40,70 @@ enum rl_log_level rl_log_get_level(void)
 	return (enum rl_log_level)current_level;
 }
 
-void rl_log_(enum rl_log_level level, const char *file, int line, const char *fmt, ...)
+static void emit(enum rl_log_level level, const char *file, int line, const char *fmt,
+		 va_list ap, unsigned dropped, double seconds)
 {
-	if (level > rl_log_get_level())
-		return;
 	static const char *const names[] = { "", "error", "warning", "info", "debug" };
 	const char *base = strrchr(file, '/');
 	base = base ? base + 1 : file;
 	char msg[2048];
+	vsnprintf(msg, sizeof(msg), fmt, ap);
+	if (dropped)
+		fprintf(stderr, "relight: %s: [%s:%d] %s (%u more lines from here dropped in the "
+			"last %.0f s)\n", names[level], base, line, msg, dropped, seconds);
+	else
+		fprintf(stderr, "relight: %s: [%s:%d] %s\n", names[level], base, line, msg);
+}
+
+void rl_log_(enum rl_log_level level, const char *file, int line, const char *fmt, ...)
+{
+	if (level > rl_log_get_level())
+		return;
 	va_list ap;
 	va_start(ap, fmt);
-	vsnprintf(msg, sizeof(msg), fmt, ap);
+	emit(level, file, line, fmt, ap, 0, 0);
 	va_end(ap);
-	fprintf(stderr, "relight: %s: [%s:%d] %s\n", names[level], base, line, msg);
+}
+
+static pthread_mutex_t limit_lock = PTHREAD_MUTEX_INITIALIZER;
+static unsigned limit_rate = 10;
+
+void rl_log_set_rate(unsigned per_second)
+{
+	pthread_mutex_lock(&limit_lock);
+	limit_rate = per_second;
+	pthread_mutex_unlock(&limit_lock);
+}
+
+void rl_log_limited_(struct rl_log_limit *limit, enum rl_log_level level, const char *file,
+		     int line, const char *fmt, ...)
+{
+	if (level > rl_log_get_level())
+		return;
+	double now = rl_now_ms();
+	pthread_mutex_lock(&limit_lock);
+	if (now - limit->window >= 1000 || limit->window == 0) {
+		limit->window = now;
+		limit->lines = 0;
+	}
+	bool print = !limit_rate || limit->lines < limit_rate;
+	unsigned dropped = 0;
+	double seconds = 0;
+	if (print) {
+		limit->lines++;
+		dropped = limit->dropped;
+		seconds = (now - limit->since) / 1000;
+		limit->dropped = 0;
+	} else {
+		if (!limit->dropped)
+			limit->since = now;
+		limit->dropped++;
+	}
+	pthread_mutex_unlock(&limit_lock);
+	if (!print)
+		return;
+	va_list ap;
+	va_start(ap, fmt);
+	emit(level, file, line, fmt, ap, dropped, seconds);
+	va_end(ap);
 }

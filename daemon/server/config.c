@@ -34,8 +34,11 @@ enum kind {
 	K_COUNT,   /* a uint32_t field */
 	K_LOG,     /* log_level */
 	K_ORIGIN,  /* appended to origins[] */
+	K_METRICS, /* metrics_token: "open" or "token" */
 	K_CONFIG,  /* command line only: read a config file first */
 	K_HELP,    /* command line only */
+	K_VERSION, /* command line only */
+	K_QUIET,   /* quiet; -q as well */
 };
 
 struct setting {
@@ -104,8 +107,27 @@ static const struct setting settings[] = {
 	{ .name = "tile-size", .kind = K_COUNT, FIELD(tile_size), .min = 16, .max = 1024,
 	  .unit = "pixels", .arg = "N", .dflt = "128",
 	  .help = "Width and height of the image tiles sent (16 to 1024)." },
+	{ .name = "hello-timeout", .kind = K_COUNT, FIELD(hello_timeout), .min = 1, .max = 3600,
+	  .unit = "seconds", .arg = "S", .dflt = "10",
+	  .help = "A connection that has not had its hello accepted this many seconds after "
+		  "the upgrade is closed (1008) (1 to 3600)." },
+	{ .name = "max-preauth", .kind = K_COUNT, FIELD(max_preauth), .min = 1, .max = 65536,
+	  .unit = "connections", .arg = "N", .dflt = "16",
+	  .help = "Connections waiting for their hello at once; more are refused at the "
+		  "upgrade (1 to 65536). They do not count against --max-clients, and each "
+		  "may send one message of at most 4 KB until its hello is accepted." },
+	{ .name = "metrics", .kind = K_METRICS, .arg = "open|token", .dflt = "open",
+	  .help = "Who may GET /metrics: anyone, or (token) requests with the header "
+		  "\"Authorization: Bearer TOKEN\" naming a token of --token-file." },
 	{ .name = "log-level", .kind = K_LOG, .arg = "LEVEL", .dflt = "info",
 	  .help = "error, warn, info or debug." },
+	{ .name = "log-rate", .kind = K_COUNT, FIELD(log_rate), .min = 0, .max = 1000000,
+	  .unit = "lines", .arg = "N", .dflt = "10",
+	  .help = "Lines a second that each line of the log about a client or its messages "
+		  "may print; the rest are counted in the next one printed (0: no limit)." },
+	{ .name = "quiet", .kind = K_QUIET,
+	  .help = "Errors only (no warnings, no information), whatever --log-level says." },
+	{ .name = "version", .kind = K_VERSION, .help = "Print the version and exit." },
 	{ .name = "help", .kind = K_HELP, .help = "Print this text and exit." },
 };
 
@@ -131,6 +153,9 @@ void srv_config_defaults(struct srv_config *c)
 	c->max_lights = 1024;
 	c->client_queue = (size_t)64 << 20;
 	c->tile_size = 128;
+	c->hello_timeout = 10;
+	c->max_preauth = 16;
+	c->log_rate = 10;
 	c->log_level = RL_LOG_INFO;
 	/* snapshot_dir stays empty: srv_config_parse_args derives it from the final shots_dir. */
 }
@@ -349,8 +374,24 @@ static bool apply(struct srv_config *c, const struct setting *s, const char *v, 
 		return false;
 	case K_ORIGIN:
 		return add_origin(c, v, why, n);
+	case K_METRICS:
+		if (strcmp(v, "open") && strcmp(v, "token")) {
+			snprintf(why, n, "'%.80s' is neither open nor token", v);
+			return false;
+		}
+		c->metrics_token = !strcmp(v, "token");
+		return true;
+	case K_QUIET:
+		if (strcasecmp(v, "true") && strcasecmp(v, "false") && strcmp(v, "1") &&
+		    strcmp(v, "0")) {
+			snprintf(why, n, "'%.80s' is not true or false", v);
+			return false;
+		}
+		c->quiet = !strcasecmp(v, "true") || !strcmp(v, "1");
+		return true;
 	case K_CONFIG:
 	case K_HELP:
+	case K_VERSION:
 		break;
 	}
 	snprintf(why, n, "not a setting");
@@ -423,7 +464,7 @@ bool srv_config_parse_text(struct srv_config *c, const char *name, const char *t
 		} else {
 			snprintf(key, sizeof(key), "%.40s...", kb);
 		}
-		if (!s || s->kind == K_HELP) {
+		if (!s || s->kind == K_HELP || s->kind == K_VERSION) {
 			snprintf(err, errlen, "%s:%u: unknown setting '%s'", name, line, key);
 			return false;
 		}
@@ -466,11 +507,13 @@ bool srv_config_load_file(struct srv_config *c, const char *path, char *err, siz
 static void build_longopts(struct option *o)
 {
 	for (size_t i = 0; i < NSETTINGS; i++) {
+		enum kind k = settings[i].kind;
 		o[i] = (struct option){
 			.name = settings[i].name,
-			.has_arg = settings[i].kind == K_HELP ? no_argument : required_argument,
+			.has_arg = k == K_HELP || k == K_VERSION || k == K_QUIET ? no_argument
+										    : required_argument,
 			.flag = NULL,
-			.val = settings[i].kind == K_HELP ? 'h' : OPT_BASE + (int)i,
+			.val = k == K_HELP ? 'h' : k == K_QUIET ? 'q' : OPT_BASE + (int)i,
 		};
 	}
 	o[NSETTINGS] = (struct option){ 0 };
@@ -494,6 +537,12 @@ static bool finish(struct srv_config *c, char *err, size_t errlen)
 		snprintf(err, errlen, "--tls-key: needs --tls-cert");
 		return false;
 	}
+	if (c->metrics_token && !c->token_file[0]) {
+		snprintf(err, errlen, "--metrics token: needs --token-file (the tokens it takes)");
+		return false;
+	}
+	if (c->quiet)
+		c->log_level = RL_LOG_ERROR;
 	if (!c->snapshot_dir[0]) {
 		size_t len = strlen(c->shots_dir);
 		const char *sep = len && c->shots_dir[len - 1] == '/' ? "" : "/";
@@ -520,17 +569,24 @@ bool srv_config_parse_args(struct srv_config *c, int argc, char **argv, FILE *ou
 
 	/* First pass: --help wins over everything; --config files come before the options. */
 	optind = 1;
-	bool help = false;
-	while ((ch = getopt_long(argc, argv, ":h", longopts, NULL)) != -1)
+	bool help = false, version = false;
+	while ((ch = getopt_long(argc, argv, ":hq", longopts, NULL)) != -1) {
 		if (ch == 'h')
 			help = true;
+		else if (ch >= OPT_BASE && settings[ch - OPT_BASE].kind == K_VERSION)
+			version = true;
+	}
 	if (help) {
 		srv_config_usage(out ? out : stdout);
 		c->help = true;
 		return true;
 	}
+	if (version) {
+		c->version = true;
+		return true;
+	}
 	optind = 1;
-	while ((ch = getopt_long(argc, argv, ":h", longopts, NULL)) != -1) {
+	while ((ch = getopt_long(argc, argv, ":hq", longopts, NULL)) != -1) {
 		if (ch >= OPT_BASE && settings[ch - OPT_BASE].kind == K_CONFIG &&
 		    !srv_config_load_file(c, optarg, err, errlen))
 			return false;
@@ -540,13 +596,19 @@ bool srv_config_parse_args(struct srv_config *c, int argc, char **argv, FILE *ou
 	optind = 1;
 	bool cli_origins = false;
 	char why[512];
-	while ((ch = getopt_long(argc, argv, ":h", longopts, NULL)) != -1) {
+	while ((ch = getopt_long(argc, argv, ":hq", longopts, NULL)) != -1) {
+		if (ch == 'q') {
+			c->quiet = true;
+			continue;
+		}
 		if (ch == '?') {
 			if (optopt >= OPT_BASE)
 				snprintf(err, errlen, "--%s: takes no value",
 					 settings[optopt - OPT_BASE].name);
 			else if (optopt == 'h')
 				snprintf(err, errlen, "--help: takes no value");
+			else if (optopt == 'q')
+				snprintf(err, errlen, "--quiet: takes no value");
 			else if (optopt)
 				snprintf(err, errlen, "unknown option '-%c' (see --help)", optopt);
 			else
@@ -565,7 +627,7 @@ bool srv_config_parse_args(struct srv_config *c, int argc, char **argv, FILE *ou
 		if (ch < OPT_BASE || (size_t)(ch - OPT_BASE) >= NSETTINGS)
 			continue;
 		const struct setting *s = &settings[ch - OPT_BASE];
-		if (s->kind == K_CONFIG)
+		if (s->kind == K_CONFIG || s->kind == K_VERSION)
 			continue;
 		if (s->kind == K_ORIGIN && !cli_origins) {
 			/* The command line's list replaces the config file's. */
@@ -638,6 +700,10 @@ void srv_config_usage(FILE *out)
 		char head[64];
 		if (s->kind == K_HELP)
 			snprintf(head, sizeof(head), "  -h, --help");
+		else if (s->kind == K_QUIET)
+			snprintf(head, sizeof(head), "  -q, --quiet");
+		else if (s->kind == K_VERSION)
+			snprintf(head, sizeof(head), "  --version");
 		else
 			snprintf(head, sizeof(head), "  --%s %s", s->name, s->arg);
 		int col = (int)strlen(head);
@@ -669,7 +735,8 @@ void srv_config_usage(FILE *out)
 		       "by relightd's user alone.");
 	fputs("\nConfig file:\n", out);
 	paragraph(out, "Lines \"name = value\" with the long option names above, without the "
-		       "dashes (listen = :7878, allow-origin = https://viewer.example.com); '#' "
+		       "dashes (listen = :7878, allow-origin = https://viewer.example.com, quiet "
+		       "= true); '#' "
 		       "at the start of a line or after a blank starts a comment. The command "
 		       "line overrides the file, and --allow-origin given on the command line "
 		       "replaces the file's list.");
@@ -677,7 +744,7 @@ void srv_config_usage(FILE *out)
 	paragraph(out, "SIGTERM, SIGINT: stop accepting clients, drain the frames already "
 		       "queued, and exit.");
 	fputs("\nExit status:\n", out);
-	fputs("  0  clean exit (after a signal, or --help)\n"
+	fputs("  0  clean exit (after a signal, --help or --version)\n"
 	      "  1  runtime failure, such as the port in use or no GPU context\n"
 	      "  2  usage error: a bad option, value or config file\n",
 	      out);

@@ -9,6 +9,9 @@
  * baked on threads of their own. Nothing slow runs in a libwebsockets
  * callback.
  */
+/* realpath() is an X/Open part of POSIX 2008. */
+#define _XOPEN_SOURCE 700
+
 #include "srv.h"
 
 #include "config.h"
@@ -28,9 +31,12 @@
 #include <unistd.h>
 
 #define WS_PROTOCOL "relight.v1"
+#define WS_PATH "/ws"
 
 static struct srv g_srv;
 static volatile sig_atomic_t g_signal;
+/* The shots folder with its links resolved, as the registry names files in it. */
+static char g_shots_real[4096];
 
 double srv_now(void)
 {
@@ -66,8 +72,8 @@ void srv_send(struct srv *s, struct srv_client *c, struct srv_frame *f)
 		atomic_fetch_add(&s->metrics.tiles_dropped, dropped);
 	}
 	if (r != SENDQ_OK) {
-		rl_log(RL_LOG_WARN, "client %llu: send queue over %zu bytes of replies it does not "
-		       "read: cut off", (unsigned long long)c->id, c->q.limit);
+		rl_log_limited(RL_LOG_WARN, "client %llu: send queue over %zu bytes of replies it "
+			       "does not read: cut off", (unsigned long long)c->id, c->q.limit);
 		c->cut_off = c->overflow = true;
 	}
 	/* Replies go out at once; tiles come in batches that wake the service once. */
@@ -88,6 +94,41 @@ void srv_send_json(struct srv *s, struct srv_client *c, const cJSON *j)
 	srv_frame_unref(f);
 }
 
+/* Cut every "@dir/" out of @msg. */
+static void cut_prefix(char *msg, const char *dir)
+{
+	size_t n = strlen(dir);
+	if (!n || dir[0] != '/')
+		return;
+	char pre[4096 + 2];
+	snprintf(pre, sizeof(pre), "%s%s", dir, dir[n - 1] == '/' ? "" : "/");
+	size_t pn = strlen(pre);
+	for (char *at; (at = strstr(msg, pre)) != NULL;)
+		memmove(at, at + pn, strlen(at + pn) + 1);
+}
+
+/*
+ * Replies name files relative to the shots and snapshots folders, never by
+ * the server's absolute paths: those prefixes go, and any other absolute
+ * path (a shader's, a library's) keeps its last component only.
+ */
+static void hide_paths(const struct srv *s, char *msg)
+{
+	cut_prefix(msg, s->cfg.snapshot_dir);
+	cut_prefix(msg, g_shots_real);
+	cut_prefix(msg, s->cfg.shots_dir);
+	for (char *p = msg; *p; p++) {
+		if (*p != '/' || (p > msg && !strchr(" \t'\"(=[", p[-1])))
+			continue;
+		size_t n = strcspn(p, " \t'\"()[],;");
+		char *last = p;
+		for (char *q = p; q < p + n; q++)
+			if (*q == '/')
+				last = q;
+		memmove(p, last + 1, strlen(last + 1) + 1);
+	}
+}
+
 void srv_send_error(struct srv *s, struct srv_client *c, bool has_id, int64_t id,
 		    enum proto_error_code code, const char *fmt, ...)
 {
@@ -96,6 +137,7 @@ void srv_send_error(struct srv *s, struct srv_client *c, bool has_id, int64_t id
 	va_start(ap, fmt);
 	vsnprintf(e.message, sizeof(e.message), fmt, ap);
 	va_end(ap);
+	hide_paths(s, e.message);
 	char *text = proto_error_json(&e);
 	if (!text)
 		return;
@@ -289,7 +331,23 @@ static void do_hello(struct srv *s, struct srv_client *c, const struct proto_req
 		atomic_fetch_add(&s->metrics.refused, 1);
 		return;
 	}
-	c->hello = true;
+	pthread_mutex_lock(&s->lock);
+	bool full = s->nclients - s->npreauth >= s->cfg.max_clients;
+	if (!full) {
+		c->hello = true;
+		s->npreauth--;
+	}
+	pthread_mutex_unlock(&s->lock);
+	if (full) {
+		error(s, c, r, PROTO_E_LIMIT, "hello: %u clients are connected, the most there may be",
+		      s->cfg.max_clients);
+		pthread_mutex_lock(&s->lock);
+		c->cut_off = true;
+		pthread_mutex_unlock(&s->lock);
+		atomic_fetch_add(&s->metrics.refused, 1);
+		return;
+	}
+	lws_set_timer_usecs(c->wsi, LWS_SET_TIMER_USEC_CANCEL);
 	c->role = role;
 	cJSON *o = reply_to("hello", r);
 	cJSON_AddNumberToObject(o, "version", PROTO_VERSION);
@@ -394,7 +452,10 @@ static void handle_text(struct srv *s, struct srv_client *c, const char *text, s
 	struct proto_request r;
 	struct proto_error e;
 	struct proto_limits lim = { 0 };
-	if (!proto_parse_request(text, len, &lim, &r, &e)) {
+	/* Before hello, nothing is built from what a stranger sends. */
+	bool parsed = c->hello ? proto_parse_request(text, len, &lim, &r, &e)
+			       : proto_parse_preauth(text, len, &r, &e);
+	if (!parsed) {
 		char *t = proto_error_json(&e);
 		pthread_mutex_lock(&s->lock);
 		if (t) {
@@ -509,11 +570,29 @@ static const char *mime_of(const char *path)
 	return "application/octet-stream";
 }
 
+/* Whether the request's "Authorization: Bearer TOKEN" names a token of the token file. */
+static bool bearer_ok(struct srv *s, struct lws *wsi)
+{
+	char auth[SRV_TOKEN_MAX + 64] = "";
+	int n = lws_hdr_total_length(wsi, WSI_TOKEN_HTTP_AUTHORIZATION);
+	if (n <= 0 || n >= (int)sizeof(auth) ||
+	    lws_hdr_copy(wsi, auth, sizeof(auth), WSI_TOKEN_HTTP_AUTHORIZATION) < 0)
+		return false;
+	static const char bearer[] = "Bearer ";
+	bool ok = !strncmp(auth, bearer, sizeof(bearer) - 1) &&
+		  srv_tokens_check(s->tokens, auth + sizeof(bearer) - 1) != SRV_ROLE_NONE;
+	memset(auth, 0, sizeof(auth));
+	return ok;
+}
+
 static int http_request(struct srv *s, struct lws *wsi, const char *uri)
 {
 	if (!strcmp(uri, "/healthz"))
 		return http_reply(wsi, HTTP_STATUS_OK, "text/plain", "ok\n", 3);
 	if (!strcmp(uri, "/metrics")) {
+		if (s->cfg.metrics_token && !bearer_ok(s, wsi))
+			return http_reply(wsi, HTTP_STATUS_UNAUTHORIZED, "text/plain",
+					  "/metrics needs \"Authorization: Bearer TOKEN\"\n", 45);
 		char *t = srv_metrics_text(&s->metrics);
 		if (!t)
 			return http_reply(wsi, HTTP_STATUS_INTERNAL_SERVER_ERROR, "text/plain",
@@ -558,51 +637,76 @@ static bool origin_ok(struct srv *s, struct lws *wsi)
 	return srv_origin_allowed(&s->cfg, origin[0] ? origin : NULL);
 }
 
+/* Whether the upgrade asks for WS_PATH (a query string allowed) and offers WS_PROTOCOL. */
+static bool upgrade_ok(struct lws *wsi)
+{
+	char uri[256] = "", offered[512] = "";
+	if (lws_hdr_total_length(wsi, WSI_TOKEN_GET_URI) >= (int)sizeof(uri) ||
+	    lws_hdr_copy(wsi, uri, sizeof(uri), WSI_TOKEN_GET_URI) < 0 || strcmp(uri, WS_PATH))
+		return false;
+	if (lws_hdr_total_length(wsi, WSI_TOKEN_PROTOCOL) >= (int)sizeof(offered) ||
+	    lws_hdr_copy(wsi, offered, sizeof(offered), WSI_TOKEN_PROTOCOL) <= 0)
+		return false;
+	/* Sec-WebSocket-Protocol: a comma-separated list. */
+	char *save = NULL;
+	for (char *t = strtok_r(offered, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+		t += strspn(t, " \t");
+		size_t n = strcspn(t, " \t");
+		if (n == strlen(WS_PROTOCOL) && !memcmp(t, WS_PROTOCOL, n))
+			return true;
+	}
+	return false;
+}
+
 static void client_free(struct srv_client *c)
 {
 	sendq_finish(&c->q);
 	srv_frame_unref(c->inflight);
-	free(c->rx);
+	proto_rx_finish(&c->rx);
 	free(c);
 }
 
 static int on_receive(struct srv *s, struct srv_client *c, struct lws *wsi, const void *in,
 		      size_t len)
 {
-	if (lws_is_first_fragment(wsi)) {
-		c->rxlen = 0;
+	/* Until its hello is accepted a connection may hold one small message. */
+	size_t max = s->cfg.max_message;
+	if (!c->hello && max > PROTO_PREAUTH_MAX)
+		max = PROTO_PREAUTH_MAX;
+	bool first = lws_is_first_fragment(wsi);
+	if (first && !c->rx.too_big)
 		c->rx_binary = lws_frame_is_binary(wsi);
-		c->rx_too_big = false;
-	}
-	if (c->rxlen + len > s->cfg.max_message) {
+	/* With permessage-deflate the pieces are inflated chunks: the limit holds on
+	 * what they inflate to, and the first chunk past it ends the connection. */
+	switch (proto_rx_feed(&c->rx, in, len, first, lws_is_final_fragment(wsi), max)) {
+	case PROTO_RX_MORE:
+		return 0;
+	case PROTO_RX_MESSAGE:
+		break;
+	case PROTO_RX_TOO_BIG: {
 		static const char reason[] = "message too big";
 		lws_close_reason(wsi, LWS_CLOSE_STATUS_MESSAGE_TOO_LARGE,
 				 (unsigned char *)reason, sizeof(reason) - 1);
-		rl_log(RL_LOG_INFO, "client %llu: a message over %zu bytes: closed",
-		       (unsigned long long)c->id, s->cfg.max_message);
+		rl_log_limited(RL_LOG_INFO, "client %llu: a message over %zu bytes%s: closed (1009)",
+			       (unsigned long long)c->id, max, c->hello ? "" : " before hello");
+		pthread_mutex_lock(&s->lock);
+		c->cut_off = true;
+		c->close_code = LWS_CLOSE_STATUS_MESSAGE_TOO_LARGE;
+		c->close_why = reason;
+		pthread_mutex_unlock(&s->lock);
+		lws_callback_on_writable(wsi);
 		return -1;
 	}
-	if (c->rxlen + len + 1 > c->rxcap) {
-		size_t cap = c->rxcap ? c->rxcap : 4096;
-		while (cap < c->rxlen + len + 1)
-			cap *= 2;
-		char *rx = realloc(c->rx, cap);
-		if (!rx)
-			return -1;
-		c->rx = rx;
-		c->rxcap = cap;
+	case PROTO_RX_DISCARD:
+	case PROTO_RX_NOMEM:
+		return -1;
 	}
-	memcpy(c->rx + c->rxlen, in, len);
-	c->rxlen += len;
-	if (!lws_is_final_fragment(wsi))
-		return 0;
 	if (c->rx_binary) {
 		c->messages++;
 		error(s, c, NULL, PROTO_E_MALFORMED, "binary frames are not requests");
 	} else {
-		handle_text(s, c, c->rx, c->rxlen);
+		handle_text(s, c, c->rx.buf, c->rx.len);
 	}
-	c->rxlen = 0;
 	return 0;
 }
 
@@ -613,10 +717,11 @@ static int on_writeable(struct srv *s, struct srv_client *c, struct lws *wsi)
 	c->inflight = NULL;
 	pthread_mutex_lock(&s->lock);
 	if (c->cut_off && !c->q.len) {
+		enum lws_close_status code = c->close_code ? (enum lws_close_status)c->close_code
+							   : LWS_CLOSE_STATUS_POLICY_VIOLATION;
+		const char *why = c->close_why ? c->close_why : "policy";
 		pthread_mutex_unlock(&s->lock);
-		static const char reason[] = "policy";
-		lws_close_reason(wsi, LWS_CLOSE_STATUS_POLICY_VIOLATION, (unsigned char *)reason,
-				 sizeof(reason) - 1);
+		lws_close_reason(wsi, code, (unsigned char *)why, strlen(why));
 		return -1;
 	}
 	if (c->overflow) {
@@ -671,14 +776,20 @@ static int callback(struct lws *wsi, enum lws_callback_reasons reason, void *use
 	case LWS_CALLBACK_HTTP_FILE_COMPLETION:
 		return lws_http_transaction_completed(wsi) ? -1 : 0;
 	case LWS_CALLBACK_FILTER_PROTOCOL_CONNECTION: {
-		bool full;
+		/* Connections awaiting hello have their own limit, so silent ones
+		 * cannot keep clients with a token out. */
 		pthread_mutex_lock(&s->lock);
-		full = s->nclients >= s->cfg.max_clients;
+		bool full = s->nclients - s->npreauth >= s->cfg.max_clients;
+		bool waiting = s->npreauth >= s->cfg.max_preauth;
 		pthread_mutex_unlock(&s->lock);
-		if (g_signal || full || !origin_ok(s, wsi)) {
+		const char *why = g_signal ? "stopping" : !upgrade_ok(wsi) ?
+				  "not an upgrade to " WS_PATH " with subprotocol " WS_PROTOCOL :
+				  full ? "too many clients" :
+				  waiting ? "too many connections waiting for their hello" :
+				  !origin_ok(s, wsi) ? "its Origin is not allowed" : NULL;
+		if (why) {
 			atomic_fetch_add(&s->metrics.refused, 1);
-			rl_log(RL_LOG_INFO, "a connection refused: %s", g_signal ? "stopping" :
-			       full ? "too many clients" : "its Origin is not allowed");
+			rl_log_limited(RL_LOG_INFO, "a connection refused: %s", why);
 			return 1;
 		}
 		return 0;
@@ -695,8 +806,10 @@ static int callback(struct lws *wsi, enum lws_callback_reasons reason, void *use
 		c->next = s->clients;
 		s->clients = c;
 		s->nclients++;
+		s->npreauth++;
 		pthread_mutex_unlock(&s->lock);
 		*pc = c;
+		lws_set_timer_usecs(wsi, (lws_usec_t)s->cfg.hello_timeout * LWS_US_PER_SEC);
 		atomic_fetch_add(&s->metrics.clients, 1);
 		atomic_fetch_add(&s->metrics.connections, 1);
 		return 0;
@@ -709,12 +822,29 @@ static int callback(struct lws *wsi, enum lws_callback_reasons reason, void *use
 		if (!pc || !*pc)
 			return 0;
 		return on_writeable(s, *pc, wsi);
+	case LWS_CALLBACK_TIMER: {
+		/* The hello deadline. */
+		struct srv_client *c = pc ? *pc : NULL;
+		if (!c || c->hello)
+			return 0;
+		rl_log_limited(RL_LOG_INFO, "client %llu: no hello within %u s: closed",
+			       (unsigned long long)c->id, s->cfg.hello_timeout);
+		pthread_mutex_lock(&s->lock);
+		c->cut_off = true;
+		c->close_why = "no hello in time";
+		pthread_mutex_unlock(&s->lock);
+		atomic_fetch_add(&s->metrics.refused, 1);
+		lws_callback_on_writable(wsi);
+		return 0;
+	}
 	case LWS_CALLBACK_CLOSED: {
 		if (!pc || !*pc)
 			return 0;
 		struct srv_client *c = *pc;
 		*pc = NULL;
 		pthread_mutex_lock(&s->lock);
+		if (!c->hello)
+			s->npreauth--;
 		for (struct srv_client **p = &s->clients; *p; p = &(*p)->next)
 			if (*p == c) {
 				*p = c->next;
@@ -762,10 +892,11 @@ static void *signal_main(void *arg)
 	return NULL;
 }
 
+/* libwebsockets logs what peers do wrong: a line per peer, so limited too. */
 static void lws_to_log(int level, const char *line)
 {
-	rl_log(level == LLL_ERR ? RL_LOG_ERROR : RL_LOG_WARN, "libwebsockets: %.*s",
-	       (int)strcspn(line, "\n"), line);
+	rl_log_limited(level == LLL_ERR ? RL_LOG_ERROR : RL_LOG_WARN, "libwebsockets: %.*s",
+		       (int)strcspn(line, "\n"), line);
 }
 
 /* Make the folder @path (@cap bytes) absolute; it need not exist. */
@@ -806,7 +937,13 @@ int main(int argc, char **argv)
 		srv_config_free(&s->cfg);
 		return 0;
 	}
+	if (s->cfg.version) {
+		printf("relightd %s (protocol %d)\n", RELIGHTD_VERSION, PROTO_VERSION);
+		srv_config_free(&s->cfg);
+		return 0;
+	}
 	rl_log_set_level((enum rl_log_level)s->cfg.log_level);
+	rl_log_set_rate(s->cfg.log_rate);
 	pthread_mutex_init(&s->lock, NULL);
 	pthread_cond_init(&s->wake, NULL);
 	srv_metrics_init(&s->metrics);
@@ -867,7 +1004,11 @@ int main(int argc, char **argv)
 	}
 	rl_log(RL_LOG_INFO, "GPU: %s", s->gpu_renderer);
 
-	lws_set_log_level(LLL_ERR | LLL_WARN, lws_to_log);
+	lws_set_log_level(s->cfg.quiet ? LLL_ERR : LLL_ERR | LLL_WARN, lws_to_log);
+	char *real = realpath(s->cfg.shots_dir, NULL);
+	if (real && strlen(real) < sizeof(g_shots_real))
+		memcpy(g_shots_real, real, strlen(real) + 1);
+	free(real);
 	struct lws_context_creation_info info;
 	memset(&info, 0, sizeof(info));
 	char iface[sizeof(s->cfg.host)];

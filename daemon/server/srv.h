@@ -37,9 +37,10 @@ struct srv_client {
 	struct srv_frame *inflight; /* written; freed at the next WRITEABLE (deflate keeps a pointer) */
 	bool cut_off;              /* close once what is queued has gone out */
 	bool overflow;             /* its replies passed the queue's bound: close at once */
-	char *rx;                  /* a message being reassembled from fragments */
-	size_t rxlen, rxcap;
-	bool rx_binary, rx_too_big;
+	struct proto_rx rx;        /* a message being reassembled from fragments */
+	bool rx_binary;
+	unsigned short close_code; /* the close frame's code when cut off (0: 1008) */
+	const char *close_why;     /* and its reason (static text) */
 	/* counters for "stats" */
 	uint64_t messages, errors, edits, tiles_sent, tiles_dropped, bytes_sent;
 	struct srv_client *next;
@@ -93,7 +94,8 @@ struct srv {
 	pthread_mutex_t lock;
 	pthread_cond_t wake;       /* the worker's: jobs or refinement to do, or stop */
 	struct srv_client *clients;
-	uint32_t nclients;
+	uint32_t nclients;         /* connected, hello or not */
+	uint32_t npreauth;         /* of them, those whose hello is not accepted yet */
 	uint64_t next_client;
 	struct srv_shot *shots;    /* every shot a client opened (resident or not) */
 	uint64_t clock;

@@ -613,7 +613,8 @@ static void write_snapshot(struct srv *s, struct srv_shot *sh, const struct srv_
 	cJSON_AddStringToObject(o, "op", "snapshot");
 	if (j->has_id)
 		proto_add_id(o, j->id);
-	cJSON_AddStringToObject(o, "path", path);
+	/* The file's name in the snapshots folder: the server's paths are its own. */
+	cJSON_AddStringToObject(o, "path", strrchr(path, '/') + 1);
 	cJSON_AddNumberToObject(o, "edit", sh->edit);
 	reply_json(s, j->client, o);
 }
@@ -691,7 +692,7 @@ static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struc
 	char err[1024];
 	if (!sh->gpu) {
 		if (!shot_load(s, sh, err, sizeof(err))) {
-			rl_log(RL_LOG_ERROR, "%s", err);
+			rl_log_limited(RL_LOG_ERROR, "%s", err);
 			reply_error(s, j, PROTO_E_INTERNAL, err);
 			srv_job_free(j);
 			return;
