@@ -313,8 +313,8 @@ APART = [
      "an escaped NUL is a fine JSON string; the codec refuses it, C strings would cut it"),
     (b'{"op":"list"} {"op":"list"}', "malformed", None,
      "two objects in one frame: not one JSON text"),
-    (b'{"op":"list","op":"bogus"}', "ok", None,
-     "a repeated member: cJSON keeps the first, validate.loads refuses the object"),
+    (b'{"op":"list","op":"bogus"}', "malformed", None,
+     "a repeated member: the codec refuses it as malformed, validate.loads refuses the text"),
     # Numbers: the codec reads them as doubles, the schema exactly.
     (b'{"op":"list","id":9007199254740993}', "ok", False,
      "2^53+1 rounds to 2^53 as a double"),

@@ -225,6 +225,179 @@ static void test_tiles(void)
 	free(frame);
 }
 
+/* Repeated member names are refused wherever they are, however they are spelled. */
+static void test_duplicates(void)
+{
+	expect_error("{\"op\":\"hello\",\"version\":1,\"token\":\"aaaaaaaa\",\"token\":\"bbbbbbbb\"}",
+		     PROTO_E_MALFORMED, false);
+	expect_error("{\"op\":\"list\",\"op\":\"bogus\"}", PROTO_E_MALFORMED, false);
+	expect_error("{\"op\":\"list\",\"\\u006fp\":\"list\"}", PROTO_E_MALFORMED, false);
+	expect_error("{\"op\":\"set\",\"light\":\"a\",\"params\":{\"i\":1,\"i\":2}}",
+		     PROTO_E_MALFORMED, false);
+	expect_error("{\"op\":\"list\",\"x\":[{\"a\":1,\"a\":1}]}", PROTO_E_MALFORMED, false);
+	/* the same name in two objects is no repeat */
+	struct proto_request r;
+	struct proto_error e;
+	CHECK(parse("{\"op\":\"set\",\"light\":\"a\",\"params\":{\"light\":1,\"op\":2}}", &r, &e));
+	proto_request_free(&r);
+	/* a large object: sorted, not compared pairwise */
+	char big[70000];
+	size_t n = (size_t)snprintf(big, sizeof(big), "{\"op\":\"list\"");
+	for (int i = 0; i < 5000; i++)
+		n += (size_t)snprintf(big + n, sizeof(big) - n, ",\"k%d\":0", i);
+	snprintf(big + n, sizeof(big) - n, ",\"k4999\":1}");
+	expect_error(big, PROTO_E_MALFORMED, false);
+}
+
+/* add_light's shader is a name: no path gets as far as the daemon. */
+static void test_shader_names(void)
+{
+	struct proto_request r;
+	struct proto_error e;
+	CHECK(parse("{\"op\":\"add_light\",\"light\":\"k\",\"shader\":\"pointlight\"}", &r, &e));
+	CHECK(r.shader && !strcmp(r.shader, "pointlight"));
+	proto_request_free(&r);
+	CHECK(parse("{\"op\":\"add_light\",\"light\":\"k\",\"shader\":\"_spot2\"}", &r, &e));
+	proto_request_free(&r);
+	static const char *const bad[] = { "../../../tmp/x/evil", "/tmp/x/evil", "a/b", "..",
+					   ".hidden", "evil.sl", "2light", "a b", "a\\\\b", "x-y" };
+	for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
+		char text[256];
+		snprintf(text, sizeof(text), "{\"op\":\"add_light\",\"id\":4,\"light\":\"k\","
+			 "\"shader\":\"%s\"}", bad[i]);
+		expect_error(text, PROTO_E_RANGE, true);
+		CHECK(!proto_shader_name_ok(bad[i]));
+	}
+	CHECK(proto_shader_name_ok("spotlight") && !proto_shader_name_ok("") &&
+	      !proto_shader_name_ok(NULL));
+}
+
+static bool preauth(const char *text, struct proto_request *r, struct proto_error *e)
+{
+	return proto_parse_preauth(text, strlen(text), r, e);
+}
+
+/* Before hello: op, id, version and token only, from one flat object of 4 KB at most. */
+static void test_preauth(void)
+{
+	struct proto_request r;
+	struct proto_error e;
+	CHECK(preauth(" {\"op\":\"hello\",\"id\":-3,\"version\":1,\"token\":\"a\\u00e9\\ud83d\\ude00\\n\"} ", &r,
+		      &e));
+	CHECK(r.op == PROTO_HELLO && r.has_id && r.id == -3 && r.version == 1);
+	CHECK(r.token && !strcmp(r.token, "a\xc3\xa9\xf0\x9f\x98\x80\n"));
+	proto_request_free(&r);
+	/* other members are stepped over, nested ones too */
+	CHECK(preauth("{\"x\":[1,{\"a\":[true,false,null,-1.5e3]}],\"op\":\"hello\",\"version\":1}",
+		      &r, &e));
+	CHECK(r.op == PROTO_HELLO && !r.token);
+	proto_request_free(&r);
+	CHECK(preauth("{\"op\":\"hello\",\"version\":1,\"token\":null}", &r, &e) && !r.token);
+	proto_request_free(&r);
+	/* another op: its op and id, for the "say hello first" reply */
+	CHECK(preauth("{\"op\":\"set\",\"id\":9,\"params\":{\"a\":[1,2]}}", &r, &e));
+	CHECK(r.op == PROTO_SET && r.has_id && r.id == 9 && !r.params && !r.priv);
+	proto_request_free(&r);
+
+	/* the same verdicts as the full parser */
+	static const struct { const char *text; enum proto_error_code code; bool has_id; } bad[] = {
+		{ "", PROTO_E_MALFORMED, false },
+		{ "{", PROTO_E_MALFORMED, false },
+		{ "[1]", PROTO_E_MALFORMED, false },
+		{ "{\"op\":\"hello\",\"version\":1,}", PROTO_E_MALFORMED, false },
+		{ "{\"op\":\"hello\",\"version\":01}", PROTO_E_MALFORMED, false },
+		{ "{\"op\":\"hello\",\"version\":1}x", PROTO_E_MALFORMED, false },
+		{ "{\"op\":\"hello\",\"version\":1} {}", PROTO_E_MALFORMED, false },
+		{ "{\"op\":\"hello\",\"version\":1,\"token\":\"\\ud800\"}", PROTO_E_MALFORMED, false },
+		{ "{\"op\":\"hello\",\"version\":1,\"token\":\"a\\u0000b\"}", PROTO_E_MALFORMED, false },
+		{ "{\"op\":\"hello\",\"id\":1,\"version\":1,\"token\":\"\xff\"}", PROTO_E_MALFORMED, true },
+		{ "{\"op\":\"hello\",\"version\":1,\"op\":\"hello\"}", PROTO_E_MALFORMED, false },
+		{ "{\"op\":\"hello\",\"version\":1,\"t\\u006fken\":\"a\",\"token\":\"b\"}", PROTO_E_MALFORMED, false },
+		{ "{\"id\":2}", PROTO_E_MALFORMED, true },
+		{ "{\"op\":7}", PROTO_E_MALFORMED, false },
+		{ "{\"op\":\"bogus\",\"id\":5}", PROTO_E_UNKNOWN_OP, true },
+		{ "{\"op\":\"hello\",\"id\":1.5}", PROTO_E_TYPE, false },
+		{ "{\"op\":\"hello\"}", PROTO_E_TYPE, false },
+		{ "{\"op\":\"hello\",\"version\":2}", PROTO_E_RANGE, false },
+		{ "{\"op\":\"hello\",\"version\":1,\"token\":5}", PROTO_E_TYPE, false },
+	};
+	for (size_t i = 0; i < sizeof(bad) / sizeof(bad[0]); i++) {
+		bool ok = preauth(bad[i].text, &r, &e);
+		if (ok || e.code != bad[i].code || e.has_id != bad[i].has_id)
+			fprintf(stderr, "preauth %s: %s %s (%s)\n", bad[i].text, ok ? "accepted" : "refused",
+				proto_error_name(e.code), e.message);
+		CHECK(!ok && e.code == bad[i].code && e.has_id == bad[i].has_id);
+		CHECK(!r.owned && !r.token);
+		/* the full parser agrees, but for a leading zero that cJSON reads */
+		if (strstr(bad[i].text, ":01"))
+			continue;
+		struct proto_error e2;
+		bool ok2 = parse(bad[i].text, &r, &e2);
+		if (ok2 || e2.code != e.code)
+			fprintf(stderr, "full parser on %s: %s\n", bad[i].text, ok2 ? "ok" : e2.message);
+		CHECK(!ok2 && e2.code == e.code);
+		if (ok2)
+			proto_request_free(&r);
+	}
+	/* too deep, too long, a token too long */
+	char deep[400];
+	size_t n = (size_t)snprintf(deep, sizeof(deep), "{\"op\":\"hello\",\"version\":1,\"x\":");
+	for (int i = 0; i < 100; i++)
+		deep[n++] = '[';
+	for (int i = 0; i < 100; i++)
+		deep[n++] = ']';
+	snprintf(deep + n, sizeof(deep) - n, "}");
+	CHECK(!preauth(deep, &r, &e) && e.code == PROTO_E_MALFORMED);
+	char *big = malloc(PROTO_PREAUTH_MAX + 64);
+	n = (size_t)snprintf(big, 64, "{\"op\":\"hello\",\"version\":1,\"pad\":\"");
+	memset(big + n, 'x', PROTO_PREAUTH_MAX - n - 2);
+	memcpy(big + PROTO_PREAUTH_MAX - 2, "\"}", 3);
+	CHECK(strlen(big) == PROTO_PREAUTH_MAX && preauth(big, &r, &e));
+	proto_request_free(&r);
+	memcpy(big + PROTO_PREAUTH_MAX - 2, "x\"}", 4);
+	CHECK(!preauth(big, &r, &e) && e.code == PROTO_E_LIMIT);
+	free(big);
+	char tok[400];
+	n = (size_t)snprintf(tok, sizeof(tok), "{\"op\":\"hello\",\"version\":1,\"token\":\"");
+	memset(tok + n, 'a', 257);
+	snprintf(tok + n + 257, sizeof(tok) - n - 257, "\"}");
+	CHECK(!preauth(tok, &r, &e) && e.code == PROTO_E_LIMIT);
+	CHECK(!parse(tok, &r, &e) && e.code == PROTO_E_LIMIT);
+}
+
+/* Reassembly: the limit holds on the whole message, and is said once. */
+static void test_rx(void)
+{
+	struct proto_rx rx = { 0 };
+	char chunk[1000];
+	memset(chunk, 'a', sizeof(chunk));
+	CHECK(proto_rx_feed(&rx, "{\"op\"", 5, true, false, 100) == PROTO_RX_MORE);
+	CHECK(proto_rx_feed(&rx, ":\"list\"}", 8, false, true, 100) == PROTO_RX_MESSAGE);
+	CHECK(rx.len == 13 && !strcmp(rx.buf, "{\"op\":\"list\"}"));
+	/* the next message starts afresh */
+	CHECK(proto_rx_feed(&rx, "{}", 2, true, true, 100) == PROTO_RX_MESSAGE && rx.len == 2);
+	/* exactly the limit, then one byte over */
+	CHECK(proto_rx_feed(&rx, chunk, 60, true, false, 100) == PROTO_RX_MORE);
+	CHECK(proto_rx_feed(&rx, chunk, 40, false, true, 100) == PROTO_RX_MESSAGE && rx.len == 100);
+	CHECK(proto_rx_feed(&rx, chunk, 60, true, false, 100) == PROTO_RX_MORE);
+	CHECK(proto_rx_feed(&rx, chunk, 41, false, false, 100) == PROTO_RX_TOO_BIG);
+	CHECK(rx.len == 60 && rx.cap <= 4096);
+	/* every chunk after it (inflated pieces of the same frame, a new frame) is dropped */
+	for (int i = 0; i < 1000; i++)
+		CHECK(proto_rx_feed(&rx, chunk, sizeof(chunk), i % 2 == 0, false, 100) ==
+		      PROTO_RX_DISCARD);
+	CHECK(rx.len == 60);
+	proto_rx_finish(&rx);
+	CHECK(!rx.buf && !rx.len);
+	proto_rx_finish(NULL);
+	/* one chunk over the limit on its own, and SIZE_MAX arithmetic */
+	CHECK(proto_rx_feed(&rx, chunk, 101, true, true, 100) == PROTO_RX_TOO_BIG && !rx.buf);
+	proto_rx_finish(&rx);
+	CHECK(proto_rx_feed(&rx, chunk, 10, true, false, 100) == PROTO_RX_MORE);
+	CHECK(proto_rx_feed(&rx, chunk, SIZE_MAX - 5, false, false, 100) == PROTO_RX_TOO_BIG);
+	proto_rx_finish(&rx);
+}
+
 int main(void)
 {
 	RUN(test_requests);
@@ -232,5 +405,9 @@ int main(void)
 	RUN(test_text);
 	RUN(test_reply_text);
 	RUN(test_tiles);
+	RUN(test_duplicates);
+	RUN(test_shader_names);
+	RUN(test_preauth);
+	RUN(test_rx);
 	return test_finish();
 }
