@@ -14,11 +14,13 @@ Checks (none with a tolerance; times are bounds, given with each):
     nested deep in a pre-hello message is stepped over (the hello is served);
   - a request with a member twice ({"op":"hello",...,"token":A,"token":B},
     {"op":"list","op":"bogus"}) gets a "malformed" error;
-  - add_light's shader is a name: "../../x/evil", "/abs/x/evil" and "a.b"
+  - add_light's shader is a name: "../../(to the root)/x/evil", the same with a
+    leading "/", and "x.evil"
     get one and the same reply whether x/evil.sl compiles, does not compile
     or is absent, and no light is added;
-  - replies hold no absolute path of the server: a shot that cannot be
-    loaded, and a snapshot's "path" (a name in the snapshots folder);
+  - replies hold no absolute path of the server: the error of a RIB that
+    cannot be baked (it lists the shader folders searched), and a
+    snapshot's "path" (a name in the snapshots folder);
   - a permessage-deflate message that inflates past --max-message closes
     with 1009, once, with one line in the log; 13 such connections within a
     second print at most --log-rate (10) of those lines, plus a count;
@@ -283,7 +285,8 @@ def shader_names(d):
     c = d.client(token=EDITOR, timeout=WAIT)
     try:
         c.open("shadows")
-        rel = os.path.relpath(outside, shots)
+        # Enough "../" to climb out of any shader folder to the root.
+        climb = "../" * 24 + outside.lstrip("/") + "/evil"
         replies = {}
         for state in ("compiles", "broken", "absent"):
             path = os.path.join(outside, "evil.sl")
@@ -293,7 +296,7 @@ def shader_names(d):
                 open(path, "w").write("light evil( {")
             elif os.path.exists(path):
                 os.remove(path)
-            for name in (rel + "/evil", os.path.join(outside, "evil"), "x.evil"):
+            for name in (climb, "/" + climb, "x.evil"):
                 try:
                     c.add_light("probe_" + state, name)
                     got = ("added",)
@@ -325,18 +328,21 @@ def paths(d):
         c.disconnect()
     bad = os.path.join(d.tmp, "badshots")
     os.makedirs(bad)
-    with open(os.path.join(bad, "broken.shot.exr"), "wb") as f:
-        f.write(b"\x76\x2f\x31\x01" + os.urandom(4000))
+    # A RIB that cannot be baked: its error names the shader folders searched.
+    with open(os.path.join(bad, "broken.rib"), "w") as f:
+        f.write('Display "broken.exr" "file" "rgba"\nFormat 64 64 1\nWorldBegin\n'
+                'Surface "nosuchshader"\nSphere 1 -1 1 360\nWorldEnd\n')
     b = harness.Daemon(relightd, bad, tokens=[EDITOR])
     try:
         with b.client(token=EDITOR, timeout=WAIT) as c2:
             try:
                 c2.open("broken")
-                C.check(False, "a broken shot file is refused")
+                C.check(False, "a RIB that cannot be baked is refused")
             except relight.ServerError as e:
                 C.check(os.path.realpath(bad) not in e.message and bad not in e.message,
                         "its error names no absolute path of the server", e.message)
-                C.check(not any(w.startswith("/") for w in e.message.replace("'", " ").split()),
+                C.check(not any(w.startswith("/") for w in
+                                e.message.replace("'", " ").replace("(", " ").split()),
                         "no word of its error is an absolute path", e.message)
     finally:
         b.finish(C)
