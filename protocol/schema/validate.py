@@ -21,7 +21,8 @@ loaded, so that no constraint is ever skipped without a word. Known keywords:
 type (null, boolean, integer, number, string, array, object), enum, const,
 properties, required, additionalProperties, propertyNames, minProperties,
 maxProperties, dependentRequired, items, minItems, maxItems, minimum,
-maximum, minLength, maxLength, oneOf, anyOf, $ref (to "#/$defs/NAME"),
+maximum, minLength, maxLength, pattern (a regular expression of Python's re,
+searched, as JSON Schema says), oneOf, anyOf, $ref (to "#/$defs/NAME"),
 $defs, and the annotations $schema, $comment, title and description.
 
 Numbers are compared exactly: the parser reads them as int or Decimal, so
@@ -34,6 +35,7 @@ are refused, since which value a reader would keep is anyone's guess.
 import decimal
 import json
 import os
+import re
 import sys
 
 __all__ = ["Schema", "SchemaError", "load_schema", "loads", "validate"]
@@ -42,7 +44,7 @@ ANNOTATIONS = {"$schema", "$comment", "title", "description"}
 KEYWORDS = ANNOTATIONS | {
     "$defs", "$ref", "type", "enum", "const", "properties", "required", "additionalProperties",
     "propertyNames", "minProperties", "maxProperties", "dependentRequired", "items", "minItems",
-    "maxItems", "minimum", "maximum", "minLength", "maxLength", "oneOf", "anyOf",
+    "maxItems", "minimum", "maximum", "minLength", "maxLength", "pattern", "oneOf", "anyOf",
 }
 TYPES = {"null", "boolean", "integer", "number", "string", "array", "object"}
 
@@ -211,6 +213,11 @@ class Schema:
             elif k in ("minimum", "maximum"):
                 if not _is_number(v):
                     self._fail(at, "must be a number")
+            elif k == "pattern":
+                try:
+                    re.compile(v)
+                except (TypeError, re.error):
+                    self._fail(at, "must be a regular expression")
             elif k in ("minProperties", "maxProperties", "minItems", "maxItems", "minLength",
                        "maxLength"):
                 if not _is_integer(v) or v < 0:
@@ -274,6 +281,8 @@ class Schema:
             if "maxLength" in s and len(v) > s["maxLength"]:
                 err("a string of %d characters, longer than %d" % (len(v), s["maxLength"]),
                     "maxLength")
+            if "pattern" in s and not re.search(s["pattern"], v):
+                err("%s does not match %s" % (_show(v), s["pattern"]), "pattern")
         if isinstance(v, list):
             if "minItems" in s and len(v) < s["minItems"]:
                 err("%d items, fewer than %d" % (len(v), s["minItems"]), "minItems")

@@ -98,13 +98,17 @@ def schemas_and_sources():
     C.equal(sorted(error), sorted(documented), "reply.schema.json's error codes are the README's")
 
     # The validator refuses what it cannot check, rather than passing it by.
-    for kw in ({"pattern": "^a"}, {"format": "email"}, {"properties": {"a": {"multipleOf": 2}}},
+    for kw in ({"patternProperties": {"^a": {}}}, {"format": "email"}, {"properties": {"a": {"multipleOf": 2}}},
                {"$ref": "other.json#/x"}, {"$ref": "#/$defs/missing"}):
         try:
             validate.Schema(kw)
             C.check(False, "validate.py refuses the schema %s" % json.dumps(kw))
         except validate.SchemaError:
             C.check(True, "validate.py refuses the schema %s" % json.dumps(kw))
+    # pattern is searched, as JSON Schema has it.
+    s = validate.Schema({"type": "string", "pattern": "^[a-z]+$"})
+    C.check(s.is_valid("abc") and not s.is_valid("a/b") and not s.is_valid(""),
+            "validate.py checks pattern")
     # It tells numbers exactly and booleans from numbers.
     s = validate.Schema({"type": "integer", "maximum": 9007199254740992})
     C.check(s.is_valid(validate.loads("9007199254740992")) and s.is_valid(validate.loads("1e3"))
@@ -263,6 +267,10 @@ REQUESTS = [
     ('{"op":"add_light","shader":"pointlight"}', "type"),
     ('{"op":"add_light","light":"k","shader":""}', "type"),
     ('{"op":"add_light","light":"k","shader":"%s"}' % A257, "limit"),
+    ('{"op":"add_light","light":"k","shader":"../../tmp/evil"}', "range"),
+    ('{"op":"add_light","light":"k","shader":"/tmp/evil"}', "range"),
+    ('{"op":"add_light","light":"k","shader":"evil.sl"}', "range"),
+    ('{"op":"add_light","light":"k","shader":"_spot2"}', "ok"),
     ('{"op":"add_light","light":"k","shader":"s","params":null}', "type"),
     ('{"op":"add_light","light":"k","shader":"s","params":{"a":[]}}', "range"),
     ('{"op":"add_light","light":"k","shader":"s","params":%s}' % params(65), "limit"),
