@@ -58,7 +58,7 @@ static void usage(FILE *out)
 		"                        linear half floats (rgba16f tiles), or PNG of the\n"
 		"                        8-bit sRGB pixels (rgba8 tiles)\n"
 		"  server-snapshot       Have the server write an OpenEXR of the current state;\n"
-		"                        print the path it wrote (on the server's machine)\n"
+		"                        print its name in the server's --snapshots folder\n"
 		"  stats                 Print the session's counters\n"
 		"  watch SECONDS         For SECONDS, print every message from the server\n"
 		"                        (levels, progress, stats, ...), one line each\n"

@@ -209,7 +209,8 @@ run "server-snapshot" "$relight" remote -q "$url" open crowd server-snapshot
 expect_status 0
 checks=$((checks + 1))
 what="server-snapshot"
-snap=$(head -n 1 "$work/stdout")
+# The server names the file in its snapshots folder (SHOTS/snapshots by default).
+snap="$shots/snapshots/$(head -n 1 "$work/stdout")"
 [ -f "$snap" ] && [ "$(head -c 4 "$snap" | od -An -tx1 | tr -d ' ')" = "762f3101" ] ||
 	fail "the server's snapshot '$snap' is no OpenEXR file"
 
