@@ -112,7 +112,7 @@ static const struct setting settings[] = {
 	  .help = "A connection that has not had its hello accepted this many seconds after "
 		  "the upgrade is closed (1008) (1 to 3600)." },
 	{ .name = "max-preauth", .kind = K_COUNT, FIELD(max_preauth), .min = 1, .max = 65536,
-	  .unit = "connections", .arg = "N", .dflt = "16",
+	  .unit = "connections", .arg = "N", .dflt = "128",
 	  .help = "Connections waiting for their hello at once; more are refused at the "
 		  "upgrade (1 to 65536). They do not count against --max-clients, and each "
 		  "may send one message of at most 4 KB until its hello is accepted." },
@@ -154,7 +154,7 @@ void srv_config_defaults(struct srv_config *c)
 	c->client_queue = (size_t)64 << 20;
 	c->tile_size = 128;
 	c->hello_timeout = 10;
-	c->max_preauth = 16;
+	c->max_preauth = 128;
 	c->log_rate = 10;
 	c->log_level = RL_LOG_INFO;
 	/* snapshot_dir stays empty: srv_config_parse_args derives it from the final shots_dir. */

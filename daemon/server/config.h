@@ -30,7 +30,7 @@ struct srv_config {
 	size_t client_queue;        /* --client-queue MB of queued frames per client (default 64 MB) */
 	uint32_t tile_size;         /* --tile-size N pixels (default 128) */
 	uint32_t hello_timeout;     /* --hello-timeout S: seconds a connection has for its hello (default 10) */
-	uint32_t max_preauth;       /* --max-preauth N connections before hello (default 16) */
+	uint32_t max_preauth;       /* --max-preauth N connections before hello (default 128) */
 	bool metrics_token;         /* --metrics token: /metrics needs a token of the token file */
 	int log_level;              /* --log-level error|warn|info|debug (enum rl_log_level; default info) */
 	uint32_t log_rate;          /* --log-rate N lines a second per client log line (0: no limit; default 10) */
