@@ -356,6 +356,10 @@ def deflate(d):
     C.check(s.deflate, "the daemon accepts permessage-deflate", s.head.decode(errors="replace"))
     r = s.hello()
     C.equal((r or {}).get("op"), "hello", "hello over a deflate connection")
+    # A big message that fits, inflated in several pieces, is put back together.
+    s.send_deflated(json.dumps({"op": "list", "id": 41, "pad": "ab" * 30000}).encode())
+    r = s.reply()
+    C.equal((r or {}).get("id"), 41, "a deflated message of 60 KB is served")
     s.send_deflated(json.dumps({"op": "list", "pad": " " * 300000}).encode())
     C.equal(s.close_code(10), 1009, "a frame inflating to 300 KB (--max-message 64 KB) closes "
             "with 1009")
@@ -415,7 +419,15 @@ def metrics_token():
     C.section = "metrics"
     m = None
     try:
-        m = harness.Daemon(relightd, shots, extra=["--metrics", "token"], tokens=[EDITOR])
+        m = harness.Daemon(relightd, shots, extra=["--metrics", "token", "--hello-timeout", "1"],
+                           tokens=[EDITOR])
+        t0 = time.monotonic()
+        s = Raw(m.port)
+        code = s.close_code(5)
+        took = time.monotonic() - t0
+        s.close()
+        C.check(code == 1008 and took < 3, "--hello-timeout 1: a silent connection is closed "
+                "(1008) within 3 s", "%r after %.1f s" % (code, took))
         status, _ = m.http("/metrics")
         C.equal(status, 401, "/metrics without a token: 401")
         s = socket.create_connection(("127.0.0.1", m.port), timeout=10)
