@@ -218,7 +218,7 @@ static void *bake_main(void *arg)
 	struct bake_task *t = arg;
 	struct srv *s = t->s;
 	char path[4096], err[1024];
-	rl_log(RL_LOG_INFO, "shot '%s': baking its RIB", t->sh->name);
+	rl_log_limited(RL_LOG_INFO, "shot '%s': baking its RIB", t->sh->name);
 	double t0 = srv_now();
 	bool ok = srv_shots_bake(s->registry, t->sh->name, bake_progress, t, path, sizeof(path),
 				 err, sizeof(err));
@@ -229,7 +229,7 @@ static void *bake_main(void *arg)
 		rl_log(RL_LOG_INFO, "shot '%s': baked in %.1f s", t->sh->name, srv_now() - t0);
 		snprintf(t->sh->path, sizeof(t->sh->path), "%s", path);
 	} else {
-		rl_log(RL_LOG_ERROR, "shot '%s': the bake failed: %s", t->sh->name, err);
+		rl_log_limited(RL_LOG_ERROR, "shot '%s': the bake failed: %s", t->sh->name, err);
 		/* The opens waiting on it fail; edits queued after them go too. */
 		while (t->sh->jobs) {
 			struct srv_job *j = t->sh->jobs;
