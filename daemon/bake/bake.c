@@ -1329,6 +1329,21 @@ static bool rib_frame(void *user, const struct reyes_scene *scene)
 	return true;
 }
 
+/*
+ * What a bake of @out killed mid-write left beside it: its temporary files
+ * whose writer is gone (rl_remove_stale_temps). Said on @diag when @verbose.
+ */
+static void remove_stale_temps(const char *out, FILE *diag, bool verbose)
+{
+	const char *slash = strrchr(out, '/');
+	char dir[4096];
+	snprintf(dir, sizeof(dir), "%.*s", slash ? (int)(slash - out) + 1 : 1, slash ? out : ".");
+	size_t n = rl_remove_stale_temps(dir, slash ? slash + 1 : out);
+	if (n && verbose)
+		fprintf(diag, "%s: removed %zu temporary file%s of an interrupted write\n", out, n,
+			n == 1 ? "" : "s");
+}
+
 bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opts, bool verbose,
 		   struct bake_stats *stats)
 {
@@ -1340,6 +1355,7 @@ bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opt
 	};
 	memset(j.stats, 0, sizeof(*j.stats));
 	j.bo.diag = j.diag;
+	remove_stale_temps(out, j.diag, verbose);
 	j.bo.progress_fn = opts->progress_fn ? rib_bake_progress : NULL;
 	j.bo.progress_user = &j;
 

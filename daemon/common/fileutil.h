@@ -43,6 +43,18 @@ bool rl_atomic_commit(struct rl_atomic *a);
 /** Close and remove the temporary file (after a failed write). Accepts a closed one. */
 void rl_atomic_abort(struct rl_atomic *a);
 
+/**
+ * Remove what writers killed mid-write left in folder @dir: the temporary
+ * files of atomic writes, named TARGET.tmp.PID.SUFFIX (PID the writer's
+ * process id, SUFFIX letters and digits; rl_atomic_open names them so),
+ * whose TARGET is @prefix or a temporary of it (NULL: any), whose writer is not a live
+ * process, and which are regular files (links and folders stay). A file of
+ * this process's own pid counts as stale (a pid is reused, e.g. in a
+ * container): call it before this process writes in @dir. Nothing else is
+ * touched, nothing below @dir. Returns how many were removed.
+ */
+size_t rl_remove_stale_temps(const char *dir, const char *prefix);
+
 /** pwrite() all of @len bytes at @offset, retrying on EINTR: 0, or the errno. */
 int rl_pwrite_all(int fd, const void *data, size_t len, off_t offset);
 

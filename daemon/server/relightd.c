@@ -371,6 +371,8 @@ static void do_stats(struct srv *s, struct srv_client *c, const struct proto_req
 	if (c->shot) {
 		cJSON_AddStringToObject(o, "shot", c->shot->name);
 		cJSON_AddNumberToObject(o, "edit", c->shot->edit);
+		cJSON_AddNumberToObject(o, "log_entries", (double)c->shot->log.n);
+		cJSON_AddNumberToObject(o, "log_bytes", (double)c->shot->log.bytes);
 	}
 	cJSON_AddNumberToObject(o, "clients", s->nclients);
 	cJSON_AddNumberToObject(o, "shots_resident", (double)atomic_load(&s->metrics.shots_resident));

@@ -61,6 +61,17 @@ struct srv_job {
 	struct srv_job *next;
 };
 
+/*
+ * A shot's edits as the state they produce (editlog.c): entries that later
+ * edits void are dropped, so it grows with the lights and parameters
+ * touched, not with the number of edits.
+ */
+struct srv_editlog {
+	struct srv_job **v;        /* in the order they are to be replayed */
+	size_t n, cap;
+	size_t bytes;              /* what the entries hold (srv_job_bytes) */
+};
+
 struct srv_shot {
 	char name[SRV_SHOT_NAME_MAX + 1];
 	char path[4096];
@@ -78,8 +89,7 @@ struct srv_shot {
 	size_t bytes;
 	uint32_t width, height;
 	/* Edits applied so far, replayed when an evicted shot is loaded again. */
-	struct srv_job **log;
-	size_t nlog, caplog;
+	struct srv_editlog log;
 	struct srv_shot *next;
 };
 
@@ -125,6 +135,22 @@ void srv_send_error(struct srv *s, struct srv_client *c, bool has_id, int64_t id
 /** Wake the service thread to write what was queued (any thread, lock held or not). */
 void srv_kick(struct srv *s);
 
+/* ---- editlog.c ---- */
+
+void srv_job_free(struct srv_job *j);
+/** A copy of request @r as a job of client @client. NULL when out of memory. */
+struct srv_job *srv_job_from(const struct proto_request *r, uint64_t client, double t0);
+/** Bytes job @j holds, its strings and parameters included. */
+size_t srv_job_bytes(const struct srv_job *j);
+/**
+ * Append edit @j, applied successfully, to @log (which takes it), dropping
+ * the entries it voids (see editlog.c). False when out of memory: @j is
+ * freed and the log is as it was.
+ */
+bool srv_editlog_add(struct srv_editlog *log, struct srv_job *j);
+/** Free every entry; @log is empty afterwards. */
+void srv_editlog_finish(struct srv_editlog *log);
+
 /* ---- worker.c ---- */
 
 /** Start the worker and wait until it has a GPU context: false with the reason in s->gpu_err. */
@@ -133,9 +159,6 @@ bool srv_worker_start(struct srv *s);
 void srv_worker_stop(struct srv *s);
 /** Queue @j for shot @shot (lock held); the worker takes it from there. */
 void srv_submit(struct srv *s, struct srv_shot *shot, struct srv_job *j);
-void srv_job_free(struct srv_job *j);
-/** A copy of request @r as a job of client @client. NULL when out of memory. */
-struct srv_job *srv_job_from(const struct proto_request *r, uint64_t client, double t0);
 /** The shot named @name, created (not loaded) on first use (lock held). */
 struct srv_shot *srv_shot_get(struct srv *s, const char *name);
 

@@ -27,58 +27,7 @@
 #include <string.h>
 #include <time.h>
 
-/* ---- jobs ---- */
-
-static char *dup_str(const char *s)
-{
-	return s ? strdup(s) : NULL;
-}
-
-struct srv_job *srv_job_from(const struct proto_request *r, uint64_t client, double t0)
-{
-	struct srv_job *j = calloc(1, sizeof(*j));
-	if (!j)
-		return NULL;
-	j->op = r->op;
-	j->client = client;
-	j->has_id = r->has_id;
-	j->id = r->id;
-	j->t0 = t0;
-	j->on = r->on;
-	j->format = r->format;
-	j->x = r->x;
-	j->y = r->y;
-	j->light = dup_str(r->light);
-	j->shader = dup_str(r->shader);
-	bool ok = (!r->light || j->light) && (!r->shader || j->shader);
-	if (ok && r->nparams) {
-		j->params = calloc(r->nparams, sizeof(*j->params));
-		ok = j->params != NULL;
-		for (uint32_t k = 0; ok && k < r->nparams; k++) {
-			j->params[k] = r->params[k];
-			j->params[k].name = strdup(r->params[k].name);
-			ok = j->params[k].name != NULL;
-			j->nparams = k + 1;
-		}
-	}
-	if (!ok) {
-		srv_job_free(j);
-		return NULL;
-	}
-	return j;
-}
-
-void srv_job_free(struct srv_job *j)
-{
-	if (!j)
-		return;
-	free(j->light);
-	free(j->shader);
-	for (uint32_t k = 0; k < j->nparams; k++)
-		free((char *)j->params[k].name);
-	free(j->params);
-	free(j);
-}
+/* ---- shots ---- */
 
 struct srv_shot *srv_shot_get(struct srv *s, const char *name)
 {
@@ -207,16 +156,16 @@ static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errl
 	atomic_fetch_add(&s->metrics.gpu_bytes, (int_fast64_t)sh->bytes);
 	atomic_fetch_add(&s->metrics.loads, 1);
 	/* Edits made before an eviction come back. */
-	for (size_t i = 0; i < sh->nlog; i++) {
+	for (size_t i = 0; i < sh->log.n; i++) {
 		char e2[256];
 		enum proto_error_code c;
-		if (!apply_job(s, sh, sh->log[i], e2, sizeof(e2), &c))
+		if (!apply_job(s, sh, sh->log.v[i], e2, sizeof(e2), &c))
 			rl_log(RL_LOG_WARN, "shot '%s': replaying an edit failed: %s", sh->name, e2);
 	}
 	rl_log(RL_LOG_INFO, "shot '%s': loaded, %ux%u, %.1f MiB, %u lights, %.0f ms%s", sh->name,
 	       sh->width, sh->height, (double)sh->bytes / (1 << 20),
 	       gpu_shot_light_count(sh->gpu), (srv_now() - t) * 1e3,
-	       sh->nlog ? ", edits replayed" : "");
+	       sh->log.n ? ", edits replayed" : "");
 	pthread_mutex_lock(&s->lock);
 	sh->used = ++s->clock;
 	sh->next_level = 0;
@@ -734,19 +683,13 @@ static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struc
 	uint32_t edit = sh->edit;
 	pthread_mutex_unlock(&s->lock);
 	reply_simple(s, j->client, "ack", j, edit);
-	/* Kept for a reload after an eviction. */
-	if (sh->nlog == sh->caplog) {
-		size_t cap = sh->caplog ? sh->caplog * 2 : 16;
-		struct srv_job **v = realloc(sh->log, cap * sizeof(*v));
-		if (!v) {
-			srv_job_free(j);
-			return;
-		}
-		sh->log = v;
-		sh->caplog = cap;
-	}
-	j->client = 0;
-	sh->log[sh->nlog++] = j;
+	/* Kept for a reload after an eviction (under the lock: "stats" reads its size). */
+	pthread_mutex_lock(&s->lock);
+	bool kept = srv_editlog_add(&sh->log, j);
+	pthread_mutex_unlock(&s->lock);
+	if (!kept)
+		rl_log(RL_LOG_ERROR, "shot '%s': out of memory: an edit will not survive an eviction",
+		       sh->name);
 }
 
 /* ---- the loop ---- */
@@ -850,6 +793,11 @@ static void *worker_main(void *arg)
 
 bool srv_worker_start(struct srv *s)
 {
+	/* What a snapshot killed mid-write left (the worker is the folder's one writer). */
+	size_t stale = rl_remove_stale_temps(s->cfg.snapshot_dir, NULL);
+	if (stale)
+		rl_log(RL_LOG_INFO, "snapshots folder: removed %zu temporary file%s of interrupted "
+		       "writes", stale, stale == 1 ? "" : "s");
 	pthread_mutex_lock(&s->lock);
 	if (pthread_create(&s->worker, NULL, worker_main, s)) {
 		snprintf(s->gpu_err, sizeof(s->gpu_err), "cannot start the render thread");
@@ -886,9 +834,7 @@ void srv_worker_stop(struct srv *s)
 			sh->jobs = j->next;
 			srv_job_free(j);
 		}
-		for (size_t i = 0; i < sh->nlog; i++)
-			srv_job_free(sh->log[i]);
-		free(sh->log);
+		srv_editlog_finish(&sh->log);
 		if (sh->diag)
 			fclose(sh->diag);
 		free(sh->diag_buf);
