@@ -29,6 +29,10 @@ struct srv_config {
 	uint32_t max_lights;        /* --max-lights N per shot (default 1024) */
 	size_t client_queue;        /* --client-queue MB of queued frames per client (default 64 MB) */
 	uint32_t tile_size;         /* --tile-size N pixels (default 128) */
+	uint32_t snapshot_max_count; /* --snapshot-max-count N snapshots in the folder (default 1000) */
+	size_t snapshot_max_bytes;  /* --snapshot-max-bytes MB of snapshots in the folder (default 10240 MB) */
+	uint32_t snapshot_rate;     /* --snapshot-rate N snapshots per minute per client (default 20) */
+	uint32_t worker_stall;      /* --worker-stall S seconds without a finished job: unhealthy (default 60) */
 	int log_level;              /* --log-level error|warn|info|debug (enum rl_log_level; default info) */
 	bool help;                  /* --help was given: usage printed, nothing else to do */
 };

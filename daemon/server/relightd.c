@@ -513,8 +513,15 @@ static const char *mime_of(const char *path)
 
 static int http_request(struct srv *s, struct lws *wsi, const char *uri)
 {
-	if (!strcmp(uri, "/healthz"))
+	if (!strcmp(uri, "/healthz")) {
+		char why[256];
+		if (!srv_worker_healthy(s, why, sizeof(why) - 1)) {
+			strcat(why, "\n");
+			return http_reply(wsi, HTTP_STATUS_SERVICE_UNAVAILABLE, "text/plain", why,
+					  strlen(why));
+		}
 		return http_reply(wsi, HTTP_STATUS_OK, "text/plain", "ok\n", 3);
+	}
 	if (!strcmp(uri, "/metrics")) {
 		char *t = srv_metrics_text(&s->metrics);
 		if (!t)

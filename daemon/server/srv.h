@@ -40,6 +40,7 @@ struct srv_client {
 	char *rx;                  /* a message being reassembled from fragments */
 	size_t rxlen, rxcap;
 	bool rx_binary, rx_too_big;
+	double snap_debt, snap_t;  /* snapshot rate: the bucket's debt, as of srv_now() @snap_t */
 	/* counters for "stats" */
 	uint64_t messages, errors, edits, tiles_sent, tiles_dropped, bytes_sent;
 	struct srv_client *next;
@@ -58,6 +59,7 @@ struct srv_job {
 	bool on;
 	enum proto_format format;
 	uint32_t x, y;             /* pick */
+	uint32_t gen;              /* the shot's generation when it was queued */
 	struct srv_job *next;
 };
 
@@ -88,6 +90,7 @@ struct srv_shot {
 	uint64_t used;             /* LRU clock of its last use */
 	size_t bytes;
 	uint32_t width, height;
+	uint32_t gen;              /* counts the times its file changed size under its clients */
 	/* Edits applied so far, replayed when an evicted shot is loaded again. */
 	struct srv_editlog log;
 	struct srv_shot *next;
@@ -114,6 +117,7 @@ struct srv {
 	pthread_t worker;
 	bool worker_running;
 	bool gpu_ready, gpu_failed;
+	double worker_beat;        /* when the worker last finished a job or level, or woke to work */
 	char gpu_err[512];
 	char gpu_renderer[256];
 };
@@ -157,8 +161,17 @@ void srv_editlog_finish(struct srv_editlog *log);
 bool srv_worker_start(struct srv *s);
 /** Stop the worker (after the work in hand) and free every shot. */
 void srv_worker_stop(struct srv *s);
-/** Queue @j for shot @shot (lock held); the worker takes it from there. */
+/**
+ * Queue @j for shot @shot (lock held); the worker takes it from there. A
+ * snapshot past its client's --snapshot-rate is refused here instead: the
+ * client gets the error and @j is freed.
+ */
 void srv_submit(struct srv *s, struct srv_shot *shot, struct srv_job *j);
+/**
+ * Whether the render worker is alive: false, with the reason in @why, when
+ * jobs wait and it has finished none for --worker-stall seconds. Any thread.
+ */
+bool srv_worker_healthy(struct srv *s, char *why, size_t whylen);
 /** The shot named @name, created (not loaded) on first use (lock held). */
 struct srv_shot *srv_shot_get(struct srv *s, const char *name);
 

@@ -20,11 +20,14 @@
 #include "texture.h"
 
 #include <cjson/cJSON.h>
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 
 /* ---- shots ---- */
@@ -45,9 +48,38 @@ struct srv_shot *srv_shot_get(struct srv *s, const char *name)
 	return sh;
 }
 
+/*
+ * Whether client @c may have one more snapshot now: a bucket of
+ * --snapshot-rate snapshots that refills at that many a minute. Lock held.
+ */
+static bool snapshot_allowed(struct srv *s, struct srv_client *c, double *wait)
+{
+	double rate = s->cfg.snapshot_rate / 60.0, now = srv_now();
+	c->snap_debt -= (now - c->snap_t) * rate;
+	if (c->snap_debt < 0)
+		c->snap_debt = 0;
+	c->snap_t = now;
+	if (c->snap_debt + 1 > s->cfg.snapshot_rate) {
+		*wait = (c->snap_debt + 1 - s->cfg.snapshot_rate) / rate;
+		return false;
+	}
+	c->snap_debt += 1;
+	return true;
+}
+
 void srv_submit(struct srv *s, struct srv_shot *shot, struct srv_job *j)
 {
+	struct srv_client *c = j->op == PROTO_SNAPSHOT ? srv_client_find(s, j->client) : NULL;
+	double wait;
+	if (c && !snapshot_allowed(s, c, &wait)) {
+		srv_send_error(s, c, j->has_id, j->id, PROTO_E_LIMIT,
+			       "snapshot: over the limit of %u a minute (--snapshot-rate); the next "
+			       "in %.1f s", s->cfg.snapshot_rate, wait);
+		srv_job_free(j);
+		return;
+	}
 	j->next = NULL;
+	j->gen = shot->gen;
 	*shot->jobs_tail = j;
 	shot->jobs_tail = &j->next;
 	pthread_cond_broadcast(&s->wake);
@@ -119,6 +151,28 @@ static void diag_log(struct srv_shot *sh, enum rl_log_level level)
 		rl_log(level, "shot '%s': %s", sh->name, m);
 }
 
+/*
+ * The shot file of @sh, loaded again, is not the size it was (@w x @h): the
+ * clients showing it are told and let go of it, so that none is sent tiles
+ * of an image of another size; an open after this shows the new one.
+ */
+static void size_changed(struct srv *s, struct srv_shot *sh, uint32_t w, uint32_t h)
+{
+	rl_log(RL_LOG_WARN, "shot '%s': its shot file changed size on disk (%ux%u, now %ux%u)",
+	       sh->name, w, h, sh->width, sh->height);
+	pthread_mutex_lock(&s->lock);
+	sh->gen++;
+	for (struct srv_client *c = s->clients; c; c = c->next) {
+		if (c->shot != sh)
+			continue;
+		c->shot = NULL;
+		srv_send_error(s, c, false, 0, PROTO_E_STATE,
+			       "shot '%s' changed on disk: it was %ux%u, it is %ux%u now; open it "
+			       "again", sh->name, w, h, sh->width, sh->height);
+	}
+	pthread_mutex_unlock(&s->lock);
+}
+
 /* Load @sh into GPU memory (and replay its edits): false with the reason in @err. */
 static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errlen)
 {
@@ -131,6 +185,23 @@ static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errl
 		.texture_path = s->cfg.shots_dir,
 		.budget = s->cfg.gpu_budget,
 	};
+	/*
+	 * The folder is looked at again at every load, a reload after an
+	 * eviction too: the file may have become a link out of the folder, or
+	 * gone, since the shot was opened.
+	 */
+	char path[sizeof(sh->path)];
+	enum srv_shot_state state = srv_shots_find(s->registry, sh->name, path, sizeof(path));
+	if (state != SRV_SHOT_READY) {
+		snprintf(err, errlen, "shot '%s' cannot be loaded: %s", sh->name,
+			 state == SRV_SHOT_NEEDS_BAKE
+				 ? "its RIB is newer than its shot file: open it again to bake it"
+				 : "its shot file is no longer in the shots folder (gone, or a link "
+				   "out of the folder)");
+		sh->failed = true;
+		return false;
+	}
+	snprintf(sh->path, sizeof(sh->path), "%s", path);
 	double t = srv_now();
 	sh->gpu = gpu_shot_open(s->gpu, sh->path, &o);
 	if (!sh->gpu) {
@@ -143,8 +214,11 @@ static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errl
 	diag_log(sh, RL_LOG_WARN);
 	sh->failed = false;
 	sh->bytes = gpu_shot_bytes(sh->gpu);
+	uint32_t was_w = sh->width, was_h = sh->height;
 	sh->width = gpu_shot_width(sh->gpu);
 	sh->height = gpu_shot_height(sh->gpu);
+	if (was_w && (was_w != sh->width || was_h != sh->height))
+		size_changed(s, sh, was_w, was_h);
 	if (gpu_shot_light_count(sh->gpu) > s->cfg.max_lights) {
 		snprintf(err, errlen, "shot '%s' has %u lights, over the limit of %u", sh->name,
 			 gpu_shot_light_count(sh->gpu), s->cfg.max_lights);
@@ -519,11 +593,61 @@ static bool formats(struct srv *s, struct srv_shot *sh, bool *need8, bool *need1
 
 /* ---- jobs (worker thread, lock not held) ---- */
 
+/* What folder @dir holds of snapshots: its .exr files, and their bytes. */
+static void snapshots_held(const char *dir, uint32_t *count, uint64_t *bytes)
+{
+	*count = 0;
+	*bytes = 0;
+	DIR *d = opendir(dir);
+	if (!d)
+		return;
+	for (struct dirent *e; (e = readdir(d));) {
+		size_t n = strlen(e->d_name);
+		struct stat st;
+		if (n < 5 || strcmp(e->d_name + n - 4, ".exr") ||
+		    fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) || !S_ISREG(st.st_mode))
+			continue;
+		(*count)++;
+		*bytes += (uint64_t)st.st_size;
+	}
+	closedir(d);
+}
+
+/*
+ * Whether the snapshots folder has room for one more snapshot of @sh
+ * (--snapshot-max-count, --snapshot-max-bytes): a new one is refused at the
+ * quota, nothing is deleted. It is counted at its size uncompressed (RGBA
+ * halves), the most it can take.
+ */
+static bool snapshot_room(struct srv *s, const struct srv_shot *sh, char *err, size_t errlen)
+{
+	uint32_t count;
+	uint64_t bytes, need = (uint64_t)sh->width * sh->height * 8 + 65536;
+	snapshots_held(s->cfg.snapshot_dir, &count, &bytes);
+	if (count >= s->cfg.snapshot_max_count) {
+		snprintf(err, errlen, "snapshot: the snapshots folder holds %u snapshots, its quota "
+			 "(--snapshot-max-count); remove some first", count);
+		return false;
+	}
+	if (bytes + need > s->cfg.snapshot_max_bytes) {
+		snprintf(err, errlen, "snapshot: the snapshots folder holds %.1f MB, and this one may "
+			 "take %.1f MB of the quota of %.0f MB (--snapshot-max-bytes); remove some "
+			 "first", (double)bytes / (1 << 20), (double)need / (1 << 20),
+			 (double)s->cfg.snapshot_max_bytes / (1 << 20));
+		return false;
+	}
+	return true;
+}
+
 static void write_snapshot(struct srv *s, struct srv_shot *sh, const struct srv_job *j,
 			   struct images *im)
 {
 	struct gpu_shot_stats st;
 	char path[4096 + 256], err[256] = "";
+	if (!snapshot_room(s, sh, err, sizeof(err))) {
+		reply_error(s, j, PROTO_E_LIMIT, err);
+		return;
+	}
 	bool ok = gpu_shot_render(sh->gpu, GPU_SHOT_FINAL, &st) &&
 		  read_level(sh->gpu, GPU_SHOT_FINAL, im, false, true);
 	if (ok && !rl_mkdir_p(s->cfg.snapshot_dir)) {
@@ -635,9 +759,30 @@ static void do_job(struct srv *s, struct srv_shot *sh, struct srv_job *j, struct
 	diag_log(sh, RL_LOG_WARN);
 }
 
+/*
+ * Whether @j is a request that only its client wants (an open, a snapshot,
+ * a pick: not an edit, which changes the shot for everyone) from a client
+ * that has gone.
+ */
+static bool orphaned(struct srv *s, const struct srv_job *j)
+{
+	if (j->op != PROTO_OPEN && j->op != PROTO_SNAPSHOT && j->op != PROTO_PICK)
+		return false;
+	pthread_mutex_lock(&s->lock);
+	bool gone = !srv_client_find(s, j->client);
+	pthread_mutex_unlock(&s->lock);
+	return gone;
+}
+
 static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struct images *im)
 {
 	char err[1024];
+	if (orphaned(s, j)) {
+		rl_log(RL_LOG_DEBUG, "shot '%s': a %s of a client that has gone: dropped", sh->name,
+		       proto_op_name(j->op));
+		srv_job_free(j);
+		return;
+	}
 	if (!sh->gpu) {
 		if (!shot_load(s, sh, err, sizeof(err))) {
 			rl_log(RL_LOG_ERROR, "%s", err);
@@ -645,6 +790,12 @@ static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struc
 			srv_job_free(j);
 			return;
 		}
+	}
+	if (j->op != PROTO_OPEN && j->gen != sh->gen) {
+		reply_error(s, j, PROTO_E_STATE, "the shot changed on disk since this was sent: "
+			    "open it again");
+		srv_job_free(j);
+		return;
 	}
 	switch (j->op) {
 	case PROTO_OPEN:
@@ -708,6 +859,7 @@ static void *worker_main(void *arg)
 		return NULL;
 	}
 	s->gpu = ctx;
+	s->worker_beat = srv_now();
 	snprintf(s->gpu_renderer, sizeof(s->gpu_renderer), "%s", gpu_renderer(ctx));
 	s->gpu_ready = true;
 	pthread_cond_broadcast(&s->wake);
@@ -733,6 +885,7 @@ static void *worker_main(void *arg)
 			pthread_mutex_unlock(&s->lock);
 			do_job(s, sh, j, &im);
 			pthread_mutex_lock(&s->lock);
+			s->worker_beat = srv_now();
 			continue;
 		}
 		/* Then the next level of the shot whose edit is oldest. */
@@ -749,6 +902,7 @@ static void *worker_main(void *arg)
 		}
 		if (!sh) {
 			pthread_cond_wait(&s->wake, &s->lock);
+			s->worker_beat = srv_now();   /* idle until now: not stalled */
 			continue;
 		}
 		int level = sh->next_level;
@@ -763,6 +917,7 @@ static void *worker_main(void *arg)
 		if (ok)
 			level_build(s, sh, &im, need8, need16, edit, level, st.ms, t0, &lf);
 		pthread_mutex_lock(&s->lock);
+		s->worker_beat = srv_now();
 		if (!ok) {
 			diag_log(sh, RL_LOG_ERROR);
 			rl_log(RL_LOG_ERROR, "shot '%s': level %d failed", sh->name, level);
@@ -789,6 +944,23 @@ static void *worker_main(void *arg)
 	gpu_destroy(ctx);
 	s->gpu = NULL;
 	return NULL;
+}
+
+bool srv_worker_healthy(struct srv *s, char *why, size_t whylen)
+{
+	pthread_mutex_lock(&s->lock);
+	uint32_t waiting = 0;
+	for (struct srv_shot *sh = s->shots; sh; sh = sh->next)
+		for (struct srv_job *j = sh->baking ? NULL : sh->jobs; j; j = j->next)
+			waiting++;
+	double idle = srv_now() - s->worker_beat;
+	bool ok = !s->worker_running || !waiting || idle < s->cfg.worker_stall;
+	if (!ok)
+		snprintf(why, whylen, "the render worker has finished nothing for %.0f s while %u "
+			 "job%s wait (--worker-stall %u)", idle, waiting, waiting == 1 ? "" : "s",
+			 s->cfg.worker_stall);
+	pthread_mutex_unlock(&s->lock);
+	return ok;
 }
 
 bool srv_worker_start(struct srv *s)
