@@ -310,6 +310,63 @@ char *rl_path_absolute(const char *path)
 	return abs;
 }
 
+/* The length of the first name of @p (up to a '/' or the end). */
+static size_t name_len(const char *p)
+{
+	const char *s = strchr(p, '/');
+	return s ? (size_t)(s - p) : strlen(p);
+}
+
+/* @p past its leading slashes and "." names. */
+static const char *skip_slashes(const char *p)
+{
+	for (;;) {
+		while (*p == '/')
+			p++;
+		if (p[0] != '.' || (p[1] != '/' && p[1]))
+			return p;
+		p++;
+	}
+}
+
+char *rl_path_relative(const char *path, const char *dir)
+{
+	char *a = rl_path_absolute(path), *b = rl_path_absolute(dir);
+	char *out = NULL;
+	if (!a || !b)
+		goto done;
+	/* the names both start with */
+	const char *p = skip_slashes(a), *q = skip_slashes(b);
+	for (;;) {
+		size_t n = name_len(p), m = name_len(q);
+		if (!n || n != m || memcmp(p, q, n))
+			break;
+		p = skip_slashes(p + n);
+		q = skip_slashes(q + m);
+	}
+	/* one ".." for each name of @dir left, then the rest of @path */
+	size_t ups = 0;
+	for (const char *r = q; *r; r = skip_slashes(r + name_len(r)))
+		ups++;
+	size_t cap = ups * 3 + strlen(p) + 2;
+	out = malloc(cap);
+	if (!out)
+		goto done;
+	out[0] = '\0';
+	for (size_t i = 0; i < ups; i++)
+		strcat(out, "../");
+	strcat(out, p);
+	size_t n = strlen(out);
+	if (!n)
+		strcpy(out, ".");
+	else if (out[n - 1] == '/')
+		out[n - 1] = '\0';
+done:
+	free(a);
+	free(b);
+	return out;
+}
+
 bool rl_mkdir_p(const char *path)
 {
 	size_t n = strlen(path);

@@ -80,6 +80,14 @@ char *rl_read_file(const char *path, size_t maxlen, size_t *len, char *err, size
  */
 char *rl_path_absolute(const char *path);
 
+/**
+ * @path as seen from folder @dir ("../shaders/key.sl"), malloc'd: both made
+ * absolute (rl_path_absolute), compared name by name ("." names skipped;
+ * "..", and links, taken as names).
+ * NULL when out of memory or the current directory cannot be read.
+ */
+char *rl_path_relative(const char *path, const char *dir);
+
 /** Create directory @path and its missing parents (mode 0777 & ~umask). */
 bool rl_mkdir_p(const char *path);
 
