@@ -110,8 +110,8 @@ static const struct setting settings[] = {
 		  "is refused, nothing is deleted (1 to 1000000)." },
 	{ .name = "snapshot-max-bytes", .kind = K_SIZE, FIELD(snapshot_max_bytes), .min = 1,
 	  .max = 1u << 24, .scale = 1u << 20, .unit = "megabytes", .arg = "MB", .dflt = "10240",
-	  .help = "Bytes of the .exr files in the snapshots folder, at most; a snapshot that "
-		  "would pass it is refused." },
+	  .help = "Megabytes of .exr files the snapshots folder may hold; a snapshot that "
+		  "would pass it (counted uncompressed) is refused, nothing is deleted." },
 	{ .name = "snapshot-rate", .kind = K_COUNT, FIELD(snapshot_rate), .min = 1, .max = 100000,
 	  .unit = "snapshots", .arg = "N", .dflt = "20",
 	  .help = "Snapshots one client may ask for per minute (a burst of N, then one every "
