@@ -8,8 +8,10 @@
  * rendered, so a level of a superseded edit is never started.
  *
  * Shots stay resident within --gpu-budget and --max-shots, the least
- * recently used evicted first; an evicted shot keeps its log of edits and
- * is loaded again, edits replayed, when a client next needs it.
+ * recently used evicted first; an evicted shot keeps its log of edits (the
+ * state they produce, editlog.c) and is loaded again, looked up in the
+ * shots folder again and its edits replayed, when a client next needs it.
+ * Snapshots, opens and picks of a client that has gone are dropped.
  */
 #include "srv.h"
 
