@@ -407,15 +407,23 @@ static int cmp_weight_desc(const void *pa, const void *pb)
 /* ---- metadata ---- */
 
 /*
- * A shader's source as an absolute path, so that the shot can be previewed
- * from any directory (shaders found along a relative search path would
- * otherwise be looked for relative to wherever the preview runs).
+ * A shader's source: as an absolute path, so that the shot can be previewed
+ * from any directory, and as a path relative to the shot file's folder
+ * (@shot_dir), so that a project moved as a whole keeps its shots; and the
+ * hashes its program is checked against when the shot is read.
  */
-static void add_source(cJSON *j, const char *path)
+static void add_source(cJSON *j, const struct sl_program *p, const char *shot_dir)
 {
+	const char *path = p->source_path;
 	char *abs = path ? rl_path_absolute(path) : NULL;
+	char *rel = path && shot_dir ? rl_path_relative(path, shot_dir) : NULL;
 	cJSON_AddStringToObject(j, "source", abs ? abs : path ? path : "");
+	if (rel)
+		cJSON_AddStringToObject(j, "source_relative", rel);
+	cJSON_AddStringToObject(j, "source_hash", p->source_hash);
+	cJSON_AddStringToObject(j, "program_hash", p->program_hash);
 	free(abs);
+	free(rel);
 }
 
 static cJSON *matrix_json(const float m[16])
@@ -434,7 +442,7 @@ static cJSON *params_json(const struct reyes_shader *sh)
 	return ps;
 }
 
-static char *metadata(const struct bake *b, const struct bake_stats *st)
+static char *metadata(const struct bake *b, const struct bake_stats *st, const char *shot_dir)
 {
 	const struct reyes_scene *sc = b->scene;
 	const struct reyes_options *so = &sc->opts;
@@ -455,8 +463,7 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 		cJSON *j = cJSON_CreateObject();
 		cJSON_AddStringToObject(j, "name", l->handle ? l->handle : "");
 		cJSON_AddStringToObject(j, "shader", l->shader.name);
-		add_source(j, l->shader.prog->source_path);
-		cJSON_AddStringToObject(j, "source_hash", l->shader.prog->source_hash);
+		add_source(j, l->shader.prog, shot_dir);
 		cJSON_AddItemToObject(j, "params", params_json(&l->shader));
 		cJSON_AddItemToObject(j, "shader_to_world", matrix_json(l->shader.shader_to_world));
 		cJSON_AddItemToArray(lights, j);
@@ -475,8 +482,7 @@ static char *metadata(const struct bake *b, const struct bake_stats *st)
 		const struct sl_program *p = g->prog;
 		cJSON *j = cJSON_CreateObject();
 		cJSON_AddStringToObject(j, "shader", g->shader);
-		add_source(j, p->source_path);
-		cJSON_AddStringToObject(j, "source_hash", p->source_hash);
+		add_source(j, p, shot_dir);
 		cJSON_AddStringToObject(j, "table", g->table);
 		cJSON_AddNumberToObject(j, "first_id", g->first_id);
 		cJSON_AddNumberToObject(j, "samples", (double)g->rows);
@@ -1142,7 +1148,11 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 	st->width = W;
 	st->height = H;
 	b->tiles_json = tiles_json;
-	char *meta = ok ? metadata(b, st) : NULL;
+	char shot_dir[4096];
+	const char *slash = strrchr(path, '/');
+	snprintf(shot_dir, sizeof(shot_dir), "%.*s", slash ? (int)(slash - path) + 1 : 1,
+		 slash ? path : ".");
+	char *meta = ok ? metadata(b, st, shot_dir) : NULL;
 	struct shot_file sf = {
 		.metadata = meta, .tables = tabs, .ntables = (uint32_t)ntab, .deeps = &deep,
 		.ndeeps = 1,
@@ -1329,6 +1339,21 @@ static bool rib_frame(void *user, const struct reyes_scene *scene)
 	return true;
 }
 
+/*
+ * What a bake of @out killed mid-write left beside it: its temporary files
+ * whose writer is gone (rl_remove_stale_temps). Said on @diag when @verbose.
+ */
+static void remove_stale_temps(const char *out, FILE *diag, bool verbose)
+{
+	const char *slash = strrchr(out, '/');
+	char dir[4096];
+	snprintf(dir, sizeof(dir), "%.*s", slash ? (int)(slash - out) + 1 : 1, slash ? out : ".");
+	size_t n = rl_remove_stale_temps(dir, slash ? slash + 1 : out);
+	if (n && verbose)
+		fprintf(diag, "%s: removed %zu temporary file%s of an interrupted write\n", out, n,
+			n == 1 ? "" : "s");
+}
+
 bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opts, bool verbose,
 		   struct bake_stats *stats)
 {
@@ -1340,6 +1365,7 @@ bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opt
 	};
 	memset(j.stats, 0, sizeof(*j.stats));
 	j.bo.diag = j.diag;
+	remove_stale_temps(out, j.diag, verbose);
 	j.bo.progress_fn = opts->progress_fn ? rib_bake_progress : NULL;
 	j.bo.progress_user = &j;
 

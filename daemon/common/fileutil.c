@@ -6,6 +6,7 @@
 #include <errno.h>
 #include <pthread.h>
 #include <fcntl.h>
+#include <signal.h>
 #include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -41,9 +42,10 @@ bool rl_atomic_open(struct rl_atomic *a, const char *path)
 	a->fd = -1;
 	size_t n = strlen(path);
 	a->path = rl_xstrdup(path);
-	a->tmp = rl_xmalloc(n + sizeof(".tmp.XXXXXX"));
-	memcpy(a->tmp, path, n);
-	memcpy(a->tmp + n, ".tmp.XXXXXX", sizeof(".tmp.XXXXXX"));
+	/* PATH.tmp.PID.XXXXXX: the writer's pid tells a stale one (rl_remove_stale_temps) */
+	size_t cap = n + 64;
+	a->tmp = rl_xmalloc(cap);
+	snprintf(a->tmp, cap, "%s.tmp.%ld.XXXXXX", path, (long)getpid());
 	a->fd = mkstemp(a->tmp);
 	if (a->fd < 0) {
 		int e = errno;
@@ -152,6 +154,61 @@ void rl_atomic_abort(struct rl_atomic *a)
 	errno = e;
 }
 
+/*
+ * The writer's pid if @name is a temporary file of an atomic write of a file
+ * named @prefix (NULL: any), or of a temporary file of one:
+ *   name := target ".tmp." digits "." alnum+      (the last ".tmp." in it)
+ * 0 if it is not one.
+ */
+static long temp_writer(const char *name, const char *prefix)
+{
+	const char *t = NULL;
+	for (const char *p = strstr(name, ".tmp."); p; p = strstr(p + 1, ".tmp."))
+		t = p;
+	if (!t || t == name)
+		return 0;
+	size_t np = prefix ? strlen(prefix) : 0;
+	if (prefix && (strncmp(name, prefix, np) || name[np] != '.' || (size_t)(t - name) < np))
+		return 0;
+	const char *d = t + 5, *e = d;
+	long pid = 0;
+	while (*e >= '0' && *e <= '9' && e - d < 10)
+		pid = pid * 10 + (*e++ - '0');
+	if (e == d || *e != '.' || !e[1] || pid <= 0)
+		return 0;
+	for (const char *c = e + 1; *c; c++)
+		if (!((*c >= '0' && *c <= '9') || (*c >= 'a' && *c <= 'z') || (*c >= 'A' && *c <= 'Z')))
+			return 0;
+	return pid;
+}
+
+/* Whether process @pid may still be writing: alive, and not this process. */
+static bool writer_alive(long pid)
+{
+	if ((pid_t)pid == getpid())
+		return false;
+	return kill((pid_t)pid, 0) == 0 || errno == EPERM;
+}
+
+size_t rl_remove_stale_temps(const char *dir, const char *prefix)
+{
+	DIR *d = opendir(dir && *dir ? dir : ".");
+	if (!d)
+		return 0;
+	size_t removed = 0;
+	for (struct dirent *e; (e = readdir(d));) {
+		long pid = temp_writer(e->d_name, prefix);
+		struct stat st;
+		if (!pid || fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) != 0 ||
+		    !S_ISREG(st.st_mode) || writer_alive(pid))
+			continue;
+		if (unlinkat(dirfd(d), e->d_name, 0) == 0)
+			removed++;
+	}
+	closedir(d);
+	return removed;
+}
+
 int rl_pwrite_all(int fd, const void *data, size_t len, off_t offset)
 {
 	const char *p = data;
@@ -251,6 +308,63 @@ char *rl_path_absolute(const char *path)
 	if (abs)
 		snprintf(abs, n, "%s/%s", cwd, path);
 	return abs;
+}
+
+/* The length of the first name of @p (up to a '/' or the end). */
+static size_t name_len(const char *p)
+{
+	const char *s = strchr(p, '/');
+	return s ? (size_t)(s - p) : strlen(p);
+}
+
+/* @p past its leading slashes and "." names. */
+static const char *skip_slashes(const char *p)
+{
+	for (;;) {
+		while (*p == '/')
+			p++;
+		if (p[0] != '.' || (p[1] != '/' && p[1]))
+			return p;
+		p++;
+	}
+}
+
+char *rl_path_relative(const char *path, const char *dir)
+{
+	char *a = rl_path_absolute(path), *b = rl_path_absolute(dir);
+	char *out = NULL;
+	if (!a || !b)
+		goto done;
+	/* the names both start with */
+	const char *p = skip_slashes(a), *q = skip_slashes(b);
+	for (;;) {
+		size_t n = name_len(p), m = name_len(q);
+		if (!n || n != m || memcmp(p, q, n))
+			break;
+		p = skip_slashes(p + n);
+		q = skip_slashes(q + m);
+	}
+	/* one ".." for each name of @dir left, then the rest of @path */
+	size_t ups = 0;
+	for (const char *r = q; *r; r = skip_slashes(r + name_len(r)))
+		ups++;
+	size_t cap = ups * 3 + strlen(p) + 2;
+	out = malloc(cap);
+	if (!out)
+		goto done;
+	out[0] = '\0';
+	for (size_t i = 0; i < ups; i++)
+		strcat(out, "../");
+	strcat(out, p);
+	size_t n = strlen(out);
+	if (!n)
+		strcpy(out, ".");
+	else if (out[n - 1] == '/')
+		out[n - 1] = '\0';
+done:
+	free(a);
+	free(b);
+	return out;
 }
 
 bool rl_mkdir_p(const char *path)

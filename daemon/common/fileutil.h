@@ -43,6 +43,18 @@ bool rl_atomic_commit(struct rl_atomic *a);
 /** Close and remove the temporary file (after a failed write). Accepts a closed one. */
 void rl_atomic_abort(struct rl_atomic *a);
 
+/**
+ * Remove what writers killed mid-write left in folder @dir: the temporary
+ * files of atomic writes, named TARGET.tmp.PID.SUFFIX (PID the writer's
+ * process id, SUFFIX letters and digits; rl_atomic_open names them so),
+ * whose TARGET is @prefix or a temporary of it (NULL: any), whose writer is not a live
+ * process, and which are regular files (links and folders stay). A file of
+ * this process's own pid counts as stale (a pid is reused, e.g. in a
+ * container): call it before this process writes in @dir. Nothing else is
+ * touched, nothing below @dir. Returns how many were removed.
+ */
+size_t rl_remove_stale_temps(const char *dir, const char *prefix);
+
 /** pwrite() all of @len bytes at @offset, retrying on EINTR: 0, or the errno. */
 int rl_pwrite_all(int fd, const void *data, size_t len, off_t offset);
 
@@ -67,6 +79,14 @@ char *rl_read_file(const char *path, size_t maxlen, size_t *len, char *err, size
  * or the current directory cannot be read.
  */
 char *rl_path_absolute(const char *path);
+
+/**
+ * @path as seen from folder @dir ("../shaders/key.sl"), malloc'd: both made
+ * absolute (rl_path_absolute), compared name by name ("." names skipped;
+ * "..", and links, taken as names).
+ * NULL when out of memory or the current directory cannot be read.
+ */
+char *rl_path_relative(const char *path, const char *dir);
 
 /** Create directory @path and its missing parents (mode 0777 & ~umask). */
 bool rl_mkdir_p(const char *path);

@@ -1053,7 +1053,10 @@ static bool load_lights(struct gpu_shot *s)
 	const cJSON *l;
 	cJSON_ArrayForEach(l, ls) {
 		struct light *L = &s->lights[s->nlights];
-		const char *name = shot_meta_str(l, "name"), *hash = shot_meta_str(l, "source_hash");
+		const char *name = shot_meta_str(l, "name"), *hash = shot_meta_str(l, "program_hash");
+		bool by_program = hash != NULL;   /* shots of earlier versions: the source text's */
+		if (!by_program)
+			hash = shot_meta_str(l, "source_hash");
 		float s2w[16];
 		if (!name || !hash || !shot_meta_matrix(l, "shader_to_world", s2w))
 			return fail(s, "a light in the metadata is malformed");
@@ -1062,7 +1065,9 @@ static bool load_lights(struct gpu_shot *s)
 		s->nlights++;
 		sl_m44_mul(L->to_camera, s2w, s->w2c);
 		uint32_t k = 0;
-		while (k < s->nlshaders && strcmp(s->lshaders[k].prog->source_hash, hash))
+		while (k < s->nlshaders &&
+		       strcmp(by_program ? sl_program_hash(s->lshaders[k].prog)
+					 : s->lshaders[k].prog->source_hash, hash))
 			k++;
 		if (k == s->nlshaders) {
 			struct sl_program *p = shot_meta_shader(l, s->path, s->diag);

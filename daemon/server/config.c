@@ -119,6 +119,22 @@ static const struct setting settings[] = {
 	{ .name = "metrics", .kind = K_METRICS, .arg = "open|token", .dflt = "open",
 	  .help = "Who may GET /metrics: anyone, or (token) requests with the header "
 		  "\"Authorization: Bearer TOKEN\" naming a token of --token-file." },
+	{ .name = "snapshot-max-count", .kind = K_COUNT, FIELD(snapshot_max_count), .min = 1,
+	  .max = 1000000, .unit = "snapshots", .arg = "N", .dflt = "1000",
+	  .help = "Snapshots (.exr files) the snapshots folder may hold; a snapshot past it "
+		  "is refused, nothing is deleted (1 to 1000000)." },
+	{ .name = "snapshot-max-bytes", .kind = K_SIZE, FIELD(snapshot_max_bytes), .min = 1,
+	  .max = 1u << 24, .scale = 1u << 20, .unit = "megabytes", .arg = "MB", .dflt = "10240",
+	  .help = "Megabytes of .exr files the snapshots folder may hold; a snapshot that "
+		  "would pass it (counted uncompressed) is refused, nothing is deleted." },
+	{ .name = "snapshot-rate", .kind = K_COUNT, FIELD(snapshot_rate), .min = 1, .max = 100000,
+	  .unit = "snapshots", .arg = "N", .dflt = "20",
+	  .help = "Snapshots one client may ask for per minute (a burst of N, then one every "
+		  "60/N s); more are refused (1 to 100000)." },
+	{ .name = "worker-stall", .kind = K_COUNT, FIELD(worker_stall), .min = 1, .max = 86400,
+	  .unit = "seconds", .arg = "S", .dflt = "60",
+	  .help = "/healthz answers 503 when the render worker has finished no job for S "
+		  "seconds while jobs wait (1 to 86400)." },
 	{ .name = "log-level", .kind = K_LOG, .arg = "LEVEL", .dflt = "info",
 	  .help = "error, warn, info or debug." },
 	{ .name = "log-rate", .kind = K_COUNT, FIELD(log_rate), .min = 0, .max = 1000000,
@@ -156,6 +172,10 @@ void srv_config_defaults(struct srv_config *c)
 	c->hello_timeout = 10;
 	c->max_preauth = 128;
 	c->log_rate = 10;
+	c->snapshot_max_count = 1000;
+	c->snapshot_max_bytes = (size_t)10240 << 20;
+	c->snapshot_rate = 20;
+	c->worker_stall = 60;
 	c->log_level = RL_LOG_INFO;
 	/* snapshot_dir stays empty: srv_config_parse_args derives it from the final shots_dir. */
 }

@@ -32,6 +32,10 @@ struct srv_config {
 	uint32_t hello_timeout;     /* --hello-timeout S: seconds a connection has for its hello (default 10) */
 	uint32_t max_preauth;       /* --max-preauth N connections before hello (default 128) */
 	bool metrics_token;         /* --metrics token: /metrics needs a token of the token file */
+	uint32_t snapshot_max_count; /* --snapshot-max-count N snapshots in the folder (default 1000) */
+	size_t snapshot_max_bytes;  /* --snapshot-max-bytes MB of snapshots in the folder (default 10240 MB) */
+	uint32_t snapshot_rate;     /* --snapshot-rate N snapshots per minute per client (default 20) */
+	uint32_t worker_stall;      /* --worker-stall S seconds without a finished job: unhealthy (default 60) */
 	int log_level;              /* --log-level error|warn|info|debug (enum rl_log_level; default info) */
 	uint32_t log_rate;          /* --log-rate N lines a second per client log line (0: no limit; default 10) */
 	bool quiet;                 /* -q, --quiet: log_level error, whatever --log-level says */

@@ -429,6 +429,8 @@ static void do_stats(struct srv *s, struct srv_client *c, const struct proto_req
 	if (c->shot) {
 		cJSON_AddStringToObject(o, "shot", c->shot->name);
 		cJSON_AddNumberToObject(o, "edit", c->shot->edit);
+		cJSON_AddNumberToObject(o, "log_entries", (double)c->shot->log.n);
+		cJSON_AddNumberToObject(o, "log_bytes", (double)c->shot->log.bytes);
 	}
 	cJSON_AddNumberToObject(o, "clients", s->nclients);
 	cJSON_AddNumberToObject(o, "shots_resident", (double)atomic_load(&s->metrics.shots_resident));
@@ -587,8 +589,15 @@ static bool bearer_ok(struct srv *s, struct lws *wsi)
 
 static int http_request(struct srv *s, struct lws *wsi, const char *uri)
 {
-	if (!strcmp(uri, "/healthz"))
+	if (!strcmp(uri, "/healthz")) {
+		char why[256];
+		if (!srv_worker_healthy(s, why, sizeof(why) - 1)) {
+			strcat(why, "\n");
+			return http_reply(wsi, HTTP_STATUS_SERVICE_UNAVAILABLE, "text/plain", why,
+					  strlen(why));
+		}
 		return http_reply(wsi, HTTP_STATUS_OK, "text/plain", "ok\n", 3);
+	}
 	if (!strcmp(uri, "/metrics")) {
 		if (s->cfg.metrics_token && !bearer_ok(s, wsi))
 			return http_reply(wsi, HTTP_STATUS_UNAUTHORIZED, "text/plain",

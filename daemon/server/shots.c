@@ -16,6 +16,8 @@
 #include "shots.h"
 
 #include "bake.h"
+#include "fileutil.h"
+#include "log.h"
 #include "shotfile.h"
 
 #include <dirent.h>
@@ -296,6 +298,11 @@ struct srv_shots *srv_shots_open(const char *dir, char *err, size_t errlen)
 		snprintf(err, errlen, "cannot create a condition variable");
 		goto fail_mutex;
 	}
+	/* What a writer killed mid-write left here (bakes, by this daemon or `relight bake`). */
+	size_t stale = rl_remove_stale_temps(r->dir, NULL);
+	if (stale)
+		rl_log(RL_LOG_INFO, "shots folder: removed %zu temporary file%s of interrupted writes",
+		       stale, stale == 1 ? "" : "s");
 	return r;
 
 fail_mutex:
@@ -502,7 +509,7 @@ static bool bake_now(struct bake_call *c, const char *name, uint64_t serial, cha
 	bool fits = join(r, file, rib, sizeof(rib));
 	snprintf(file, sizeof(file), "%s.shot.exr", name);
 	fits = fits && join(r, file, final, sizeof(final));
-	int n = snprintf(tmp, sizeof(tmp), "%s.tmp-%ld-%llu", final, (long)getpid(),
+	int n = snprintf(tmp, sizeof(tmp), "%s.tmp.%ld.%llu", final, (long)getpid(),
 			 (unsigned long long)serial);
 	if (!fits || n < 0 || (size_t)n >= sizeof(tmp)) {
 		snprintf(err, errlen, "%s: the path is too long", name);

@@ -41,6 +41,7 @@ struct srv_client {
 	bool rx_binary;
 	unsigned short close_code; /* the close frame's code when cut off (0: 1008) */
 	const char *close_why;     /* and its reason (static text) */
+	double snap_debt, snap_t;  /* snapshot rate: the bucket's debt, as of srv_now() @snap_t */
 	/* counters for "stats" */
 	uint64_t messages, errors, edits, tiles_sent, tiles_dropped, bytes_sent;
 	struct srv_client *next;
@@ -59,7 +60,19 @@ struct srv_job {
 	bool on;
 	enum proto_format format;
 	uint32_t x, y;             /* pick */
+	uint32_t gen;              /* the shot's generation when it was queued */
 	struct srv_job *next;
+};
+
+/*
+ * A shot's edits as the state they produce (editlog.c): entries that later
+ * edits void are dropped, so it grows with the lights and parameters
+ * touched, not with the number of edits.
+ */
+struct srv_editlog {
+	struct srv_job **v;        /* in the order they are to be replayed */
+	size_t n, cap;
+	size_t bytes;              /* what the entries hold (srv_job_bytes) */
 };
 
 struct srv_shot {
@@ -78,9 +91,9 @@ struct srv_shot {
 	uint64_t used;             /* LRU clock of its last use */
 	size_t bytes;
 	uint32_t width, height;
+	uint32_t gen;              /* counts the times its file changed size under its clients */
 	/* Edits applied so far, replayed when an evicted shot is loaded again. */
-	struct srv_job **log;
-	size_t nlog, caplog;
+	struct srv_editlog log;
 	struct srv_shot *next;
 };
 
@@ -106,6 +119,7 @@ struct srv {
 	pthread_t worker;
 	bool worker_running;
 	bool gpu_ready, gpu_failed;
+	double worker_beat;        /* when the worker last finished a job or level, or woke to work */
 	char gpu_err[512];
 	char gpu_renderer[256];
 };
@@ -127,17 +141,39 @@ void srv_send_error(struct srv *s, struct srv_client *c, bool has_id, int64_t id
 /** Wake the service thread to write what was queued (any thread, lock held or not). */
 void srv_kick(struct srv *s);
 
+/* ---- editlog.c ---- */
+
+void srv_job_free(struct srv_job *j);
+/** A copy of request @r as a job of client @client. NULL when out of memory. */
+struct srv_job *srv_job_from(const struct proto_request *r, uint64_t client, double t0);
+/** Bytes job @j holds, its strings and parameters included. */
+size_t srv_job_bytes(const struct srv_job *j);
+/**
+ * Append edit @j, applied successfully, to @log (which takes it), dropping
+ * the entries it voids (see editlog.c). False when out of memory: @j is
+ * freed and the log is as it was.
+ */
+bool srv_editlog_add(struct srv_editlog *log, struct srv_job *j);
+/** Free every entry; @log is empty afterwards. */
+void srv_editlog_finish(struct srv_editlog *log);
+
 /* ---- worker.c ---- */
 
 /** Start the worker and wait until it has a GPU context: false with the reason in s->gpu_err. */
 bool srv_worker_start(struct srv *s);
 /** Stop the worker (after the work in hand) and free every shot. */
 void srv_worker_stop(struct srv *s);
-/** Queue @j for shot @shot (lock held); the worker takes it from there. */
+/**
+ * Queue @j for shot @shot (lock held); the worker takes it from there. A
+ * snapshot past its client's --snapshot-rate is refused here instead: the
+ * client gets the error and @j is freed.
+ */
 void srv_submit(struct srv *s, struct srv_shot *shot, struct srv_job *j);
-void srv_job_free(struct srv_job *j);
-/** A copy of request @r as a job of client @client. NULL when out of memory. */
-struct srv_job *srv_job_from(const struct proto_request *r, uint64_t client, double t0);
+/**
+ * Whether the render worker is alive: false, with the reason in @why, when
+ * jobs wait and it has finished none for --worker-stall seconds. Any thread.
+ */
+bool srv_worker_healthy(struct srv *s, char *why, size_t whylen);
 /** The shot named @name, created (not loaded) on first use (lock held). */
 struct srv_shot *srv_shot_get(struct srv *s, const char *name);
 

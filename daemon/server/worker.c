@@ -8,8 +8,10 @@
  * rendered, so a level of a superseded edit is never started.
  *
  * Shots stay resident within --gpu-budget and --max-shots, the least
- * recently used evicted first; an evicted shot keeps its log of edits and
- * is loaded again, edits replayed, when a client next needs it.
+ * recently used evicted first; an evicted shot keeps its log of edits (the
+ * state they produce, editlog.c) and is loaded again, looked up in the
+ * shots folder again and its edits replayed, when a client next needs it.
+ * Snapshots, opens and picks of a client that has gone are dropped.
  */
 #include "srv.h"
 
@@ -20,65 +22,17 @@
 #include "texture.h"
 
 #include <cjson/cJSON.h>
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 
-/* ---- jobs ---- */
-
-static char *dup_str(const char *s)
-{
-	return s ? strdup(s) : NULL;
-}
-
-struct srv_job *srv_job_from(const struct proto_request *r, uint64_t client, double t0)
-{
-	struct srv_job *j = calloc(1, sizeof(*j));
-	if (!j)
-		return NULL;
-	j->op = r->op;
-	j->client = client;
-	j->has_id = r->has_id;
-	j->id = r->id;
-	j->t0 = t0;
-	j->on = r->on;
-	j->format = r->format;
-	j->x = r->x;
-	j->y = r->y;
-	j->light = dup_str(r->light);
-	j->shader = dup_str(r->shader);
-	bool ok = (!r->light || j->light) && (!r->shader || j->shader);
-	if (ok && r->nparams) {
-		j->params = calloc(r->nparams, sizeof(*j->params));
-		ok = j->params != NULL;
-		for (uint32_t k = 0; ok && k < r->nparams; k++) {
-			j->params[k] = r->params[k];
-			j->params[k].name = strdup(r->params[k].name);
-			ok = j->params[k].name != NULL;
-			j->nparams = k + 1;
-		}
-	}
-	if (!ok) {
-		srv_job_free(j);
-		return NULL;
-	}
-	return j;
-}
-
-void srv_job_free(struct srv_job *j)
-{
-	if (!j)
-		return;
-	free(j->light);
-	free(j->shader);
-	for (uint32_t k = 0; k < j->nparams; k++)
-		free((char *)j->params[k].name);
-	free(j->params);
-	free(j);
-}
+/* ---- shots ---- */
 
 struct srv_shot *srv_shot_get(struct srv *s, const char *name)
 {
@@ -96,9 +50,38 @@ struct srv_shot *srv_shot_get(struct srv *s, const char *name)
 	return sh;
 }
 
+/*
+ * Whether client @c may have one more snapshot now: a bucket of
+ * --snapshot-rate snapshots that refills at that many a minute. Lock held.
+ */
+static bool snapshot_allowed(struct srv *s, struct srv_client *c, double *wait)
+{
+	double rate = s->cfg.snapshot_rate / 60.0, now = srv_now();
+	c->snap_debt -= (now - c->snap_t) * rate;
+	if (c->snap_debt < 0)
+		c->snap_debt = 0;
+	c->snap_t = now;
+	if (c->snap_debt + 1 > s->cfg.snapshot_rate) {
+		*wait = (c->snap_debt + 1 - s->cfg.snapshot_rate) / rate;
+		return false;
+	}
+	c->snap_debt += 1;
+	return true;
+}
+
 void srv_submit(struct srv *s, struct srv_shot *shot, struct srv_job *j)
 {
+	struct srv_client *c = j->op == PROTO_SNAPSHOT ? srv_client_find(s, j->client) : NULL;
+	double wait;
+	if (c && !snapshot_allowed(s, c, &wait)) {
+		srv_send_error(s, c, j->has_id, j->id, PROTO_E_LIMIT,
+			       "snapshot: over the limit of %u a minute (--snapshot-rate); the next "
+			       "in %.1f s", s->cfg.snapshot_rate, wait);
+		srv_job_free(j);
+		return;
+	}
 	j->next = NULL;
+	j->gen = shot->gen;
 	*shot->jobs_tail = j;
 	shot->jobs_tail = &j->next;
 	pthread_cond_broadcast(&s->wake);
@@ -170,6 +153,28 @@ static void diag_log(struct srv_shot *sh, enum rl_log_level level)
 		rl_log(level, "shot '%s': %s", sh->name, m);
 }
 
+/*
+ * The shot file of @sh, loaded again, is not the size it was (@w x @h): the
+ * clients showing it are told and let go of it, so that none is sent tiles
+ * of an image of another size; an open after this shows the new one.
+ */
+static void size_changed(struct srv *s, struct srv_shot *sh, uint32_t w, uint32_t h)
+{
+	rl_log(RL_LOG_WARN, "shot '%s': its shot file changed size on disk (%ux%u, now %ux%u)",
+	       sh->name, w, h, sh->width, sh->height);
+	pthread_mutex_lock(&s->lock);
+	sh->gen++;
+	for (struct srv_client *c = s->clients; c; c = c->next) {
+		if (c->shot != sh)
+			continue;
+		c->shot = NULL;
+		srv_send_error(s, c, false, 0, PROTO_E_STATE,
+			       "shot '%s' changed on disk: it was %ux%u, it is %ux%u now; open it "
+			       "again", sh->name, w, h, sh->width, sh->height);
+	}
+	pthread_mutex_unlock(&s->lock);
+}
+
 /* Load @sh into GPU memory (and replay its edits): false with the reason in @err. */
 static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errlen)
 {
@@ -182,6 +187,23 @@ static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errl
 		.texture_path = s->cfg.shots_dir,
 		.budget = s->cfg.gpu_budget,
 	};
+	/*
+	 * The folder is looked at again at every load, a reload after an
+	 * eviction too: the file may have become a link out of the folder, or
+	 * gone, since the shot was opened.
+	 */
+	char path[sizeof(sh->path)];
+	enum srv_shot_state state = srv_shots_find(s->registry, sh->name, path, sizeof(path));
+	if (state != SRV_SHOT_READY) {
+		snprintf(err, errlen, "shot '%s' cannot be loaded: %s", sh->name,
+			 state == SRV_SHOT_NEEDS_BAKE
+				 ? "its RIB is newer than its shot file: open it again to bake it"
+				 : "its shot file is no longer in the shots folder (gone, or a link "
+				   "out of the folder)");
+		sh->failed = true;
+		return false;
+	}
+	snprintf(sh->path, sizeof(sh->path), "%s", path);
 	double t = srv_now();
 	sh->gpu = gpu_shot_open(s->gpu, sh->path, &o);
 	if (!sh->gpu) {
@@ -194,8 +216,11 @@ static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errl
 	diag_log(sh, RL_LOG_WARN);
 	sh->failed = false;
 	sh->bytes = gpu_shot_bytes(sh->gpu);
+	uint32_t was_w = sh->width, was_h = sh->height;
 	sh->width = gpu_shot_width(sh->gpu);
 	sh->height = gpu_shot_height(sh->gpu);
+	if (was_w && (was_w != sh->width || was_h != sh->height))
+		size_changed(s, sh, was_w, was_h);
 	if (gpu_shot_light_count(sh->gpu) > s->cfg.max_lights) {
 		snprintf(err, errlen, "shot '%s' has %u lights, over the limit of %u", sh->name,
 			 gpu_shot_light_count(sh->gpu), s->cfg.max_lights);
@@ -207,16 +232,16 @@ static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errl
 	atomic_fetch_add(&s->metrics.gpu_bytes, (int_fast64_t)sh->bytes);
 	atomic_fetch_add(&s->metrics.loads, 1);
 	/* Edits made before an eviction come back. */
-	for (size_t i = 0; i < sh->nlog; i++) {
+	for (size_t i = 0; i < sh->log.n; i++) {
 		char e2[256];
 		enum proto_error_code c;
-		if (!apply_job(s, sh, sh->log[i], e2, sizeof(e2), &c))
+		if (!apply_job(s, sh, sh->log.v[i], e2, sizeof(e2), &c))
 			rl_log(RL_LOG_WARN, "shot '%s': replaying an edit failed: %s", sh->name, e2);
 	}
 	rl_log(RL_LOG_INFO, "shot '%s': loaded, %ux%u, %.1f MiB, %u lights, %.0f ms%s", sh->name,
 	       sh->width, sh->height, (double)sh->bytes / (1 << 20),
 	       gpu_shot_light_count(sh->gpu), (srv_now() - t) * 1e3,
-	       sh->nlog ? ", edits replayed" : "");
+	       sh->log.n ? ", edits replayed" : "");
 	pthread_mutex_lock(&s->lock);
 	sh->used = ++s->clock;
 	sh->next_level = 0;
@@ -570,11 +595,61 @@ static bool formats(struct srv *s, struct srv_shot *sh, bool *need8, bool *need1
 
 /* ---- jobs (worker thread, lock not held) ---- */
 
+/* What folder @dir holds of snapshots: its .exr files, and their bytes. */
+static void snapshots_held(const char *dir, uint32_t *count, uint64_t *bytes)
+{
+	*count = 0;
+	*bytes = 0;
+	DIR *d = opendir(dir);
+	if (!d)
+		return;
+	for (struct dirent *e; (e = readdir(d));) {
+		size_t n = strlen(e->d_name);
+		struct stat st;
+		if (n < 5 || strcmp(e->d_name + n - 4, ".exr") ||
+		    fstatat(dirfd(d), e->d_name, &st, AT_SYMLINK_NOFOLLOW) || !S_ISREG(st.st_mode))
+			continue;
+		(*count)++;
+		*bytes += (uint64_t)st.st_size;
+	}
+	closedir(d);
+}
+
+/*
+ * Whether the snapshots folder has room for one more snapshot of @sh
+ * (--snapshot-max-count, --snapshot-max-bytes): a new one is refused at the
+ * quota, nothing is deleted. It is counted at its size uncompressed (RGBA
+ * halves), the most it can take.
+ */
+static bool snapshot_room(struct srv *s, const struct srv_shot *sh, char *err, size_t errlen)
+{
+	uint32_t count;
+	uint64_t bytes, need = (uint64_t)sh->width * sh->height * 8 + 65536;
+	snapshots_held(s->cfg.snapshot_dir, &count, &bytes);
+	if (count >= s->cfg.snapshot_max_count) {
+		snprintf(err, errlen, "snapshot: the snapshots folder holds %u snapshots, its quota "
+			 "(--snapshot-max-count); remove some first", count);
+		return false;
+	}
+	if (bytes + need > s->cfg.snapshot_max_bytes) {
+		snprintf(err, errlen, "snapshot: the snapshots folder holds %.1f MB, and this one may "
+			 "take %.1f MB of the quota of %.0f MB (--snapshot-max-bytes); remove some "
+			 "first", (double)bytes / (1 << 20), (double)need / (1 << 20),
+			 (double)s->cfg.snapshot_max_bytes / (1 << 20));
+		return false;
+	}
+	return true;
+}
+
 static void write_snapshot(struct srv *s, struct srv_shot *sh, const struct srv_job *j,
 			   struct images *im)
 {
 	struct gpu_shot_stats st;
 	char path[4096 + 256], err[256] = "";
+	if (!snapshot_room(s, sh, err, sizeof(err))) {
+		reply_error(s, j, PROTO_E_LIMIT, err);
+		return;
+	}
 	bool ok = gpu_shot_render(sh->gpu, GPU_SHOT_FINAL, &st) &&
 		  read_level(sh->gpu, GPU_SHOT_FINAL, im, false, true);
 	if (ok && !rl_mkdir_p(s->cfg.snapshot_dir)) {
@@ -687,9 +762,30 @@ static void do_job(struct srv *s, struct srv_shot *sh, struct srv_job *j, struct
 	diag_log(sh, RL_LOG_WARN);
 }
 
+/*
+ * Whether @j is a request that only its client wants (an open, a snapshot,
+ * a pick: not an edit, which changes the shot for everyone) from a client
+ * that has gone.
+ */
+static bool orphaned(struct srv *s, const struct srv_job *j)
+{
+	if (j->op != PROTO_OPEN && j->op != PROTO_SNAPSHOT && j->op != PROTO_PICK)
+		return false;
+	pthread_mutex_lock(&s->lock);
+	bool gone = !srv_client_find(s, j->client);
+	pthread_mutex_unlock(&s->lock);
+	return gone;
+}
+
 static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struct images *im)
 {
 	char err[1024];
+	if (orphaned(s, j)) {
+		rl_log(RL_LOG_DEBUG, "shot '%s': a %s of a client that has gone: dropped", sh->name,
+		       proto_op_name(j->op));
+		srv_job_free(j);
+		return;
+	}
 	if (!sh->gpu) {
 		if (!shot_load(s, sh, err, sizeof(err))) {
 			rl_log_limited(RL_LOG_ERROR, "%s", err);
@@ -697,6 +793,12 @@ static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struc
 			srv_job_free(j);
 			return;
 		}
+	}
+	if (j->op != PROTO_OPEN && j->gen != sh->gen) {
+		reply_error(s, j, PROTO_E_STATE, "the shot changed on disk since this was sent: "
+			    "open it again");
+		srv_job_free(j);
+		return;
 	}
 	switch (j->op) {
 	case PROTO_OPEN:
@@ -735,19 +837,13 @@ static void do_job_(struct srv *s, struct srv_shot *sh, struct srv_job *j, struc
 	uint32_t edit = sh->edit;
 	pthread_mutex_unlock(&s->lock);
 	reply_simple(s, j->client, "ack", j, edit);
-	/* Kept for a reload after an eviction. */
-	if (sh->nlog == sh->caplog) {
-		size_t cap = sh->caplog ? sh->caplog * 2 : 16;
-		struct srv_job **v = realloc(sh->log, cap * sizeof(*v));
-		if (!v) {
-			srv_job_free(j);
-			return;
-		}
-		sh->log = v;
-		sh->caplog = cap;
-	}
-	j->client = 0;
-	sh->log[sh->nlog++] = j;
+	/* Kept for a reload after an eviction (under the lock: "stats" reads its size). */
+	pthread_mutex_lock(&s->lock);
+	bool kept = srv_editlog_add(&sh->log, j);
+	pthread_mutex_unlock(&s->lock);
+	if (!kept)
+		rl_log(RL_LOG_ERROR, "shot '%s': out of memory: an edit will not survive an eviction",
+		       sh->name);
 }
 
 /* ---- the loop ---- */
@@ -766,6 +862,7 @@ static void *worker_main(void *arg)
 		return NULL;
 	}
 	s->gpu = ctx;
+	s->worker_beat = srv_now();
 	snprintf(s->gpu_renderer, sizeof(s->gpu_renderer), "%s", gpu_renderer(ctx));
 	s->gpu_ready = true;
 	pthread_cond_broadcast(&s->wake);
@@ -791,6 +888,7 @@ static void *worker_main(void *arg)
 			pthread_mutex_unlock(&s->lock);
 			do_job(s, sh, j, &im);
 			pthread_mutex_lock(&s->lock);
+			s->worker_beat = srv_now();
 			continue;
 		}
 		/* Then the next level of the shot whose edit is oldest. */
@@ -807,6 +905,7 @@ static void *worker_main(void *arg)
 		}
 		if (!sh) {
 			pthread_cond_wait(&s->wake, &s->lock);
+			s->worker_beat = srv_now();   /* idle until now: not stalled */
 			continue;
 		}
 		int level = sh->next_level;
@@ -821,6 +920,7 @@ static void *worker_main(void *arg)
 		if (ok)
 			level_build(s, sh, &im, need8, need16, edit, level, st.ms, t0, &lf);
 		pthread_mutex_lock(&s->lock);
+		s->worker_beat = srv_now();
 		if (!ok) {
 			diag_log(sh, RL_LOG_ERROR);
 			rl_log(RL_LOG_ERROR, "shot '%s': level %d failed", sh->name, level);
@@ -849,8 +949,30 @@ static void *worker_main(void *arg)
 	return NULL;
 }
 
+bool srv_worker_healthy(struct srv *s, char *why, size_t whylen)
+{
+	pthread_mutex_lock(&s->lock);
+	uint32_t waiting = 0;
+	for (struct srv_shot *sh = s->shots; sh; sh = sh->next)
+		for (struct srv_job *j = sh->baking ? NULL : sh->jobs; j; j = j->next)
+			waiting++;
+	double idle = srv_now() - s->worker_beat;
+	bool ok = !s->worker_running || !waiting || idle < s->cfg.worker_stall;
+	if (!ok)
+		snprintf(why, whylen, "the render worker has finished nothing for %.0f s while %u "
+			 "job%s wait (--worker-stall %u)", idle, waiting, waiting == 1 ? "" : "s",
+			 s->cfg.worker_stall);
+	pthread_mutex_unlock(&s->lock);
+	return ok;
+}
+
 bool srv_worker_start(struct srv *s)
 {
+	/* What a snapshot killed mid-write left (the worker is the folder's one writer). */
+	size_t stale = rl_remove_stale_temps(s->cfg.snapshot_dir, NULL);
+	if (stale)
+		rl_log(RL_LOG_INFO, "snapshots folder: removed %zu temporary file%s of interrupted "
+		       "writes", stale, stale == 1 ? "" : "s");
 	pthread_mutex_lock(&s->lock);
 	if (pthread_create(&s->worker, NULL, worker_main, s)) {
 		snprintf(s->gpu_err, sizeof(s->gpu_err), "cannot start the render thread");
@@ -887,9 +1009,7 @@ void srv_worker_stop(struct srv *s)
 			sh->jobs = j->next;
 			srv_job_free(j);
 		}
-		for (size_t i = 0; i < sh->nlog; i++)
-			srv_job_free(sh->log[i]);
-		free(sh->log);
+		srv_editlog_finish(&sh->log);
 		if (sh->diag)
 			fclose(sh->diag);
 		free(sh->diag_buf);

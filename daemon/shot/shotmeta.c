@@ -4,6 +4,7 @@
 #include "shotmeta.h"
 
 #include "arena.h"
+#include "config.h"
 #include "exec.h"
 #include "sl.h"
 #include "spec.h"
@@ -11,6 +12,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #define MAX_MAGNITUDE 1e18f
 #define PI_F 3.14159265358979f
@@ -36,30 +38,113 @@ bool shot_meta_matrix(const cJSON *o, const char *key, float m[16])
 	return true;
 }
 
+/* A place a shader may be. */
+struct candidate {
+	char path[4096];
+};
+
+static void add_candidate(struct candidate *c, size_t *n, size_t cap, const char *dir,
+			  const char *file)
+{
+	if (*n == cap || !file || !*file)
+		return;
+	int k = dir ? snprintf(c[*n].path, sizeof(c[*n].path), "%s%s%s", dir,
+			       dir[0] && dir[strlen(dir) - 1] != '/' ? "/" : "", file)
+		    : snprintf(c[*n].path, sizeof(c[*n].path), "%s", file);
+	if (k < 0 || (size_t)k >= sizeof(c[*n].path))
+		return;
+	for (size_t i = 0; i < *n; i++)
+		if (!strcmp(c[i].path, c[*n].path))
+			return;
+	(*n)++;
+}
+
+/*
+ * Where the shader of entry @o may be, in order: its path relative to the
+ * shot file ("source_relative": the project moved as a whole), the
+ * absolute path of the bake ("source"), then its file name in the folders
+ * of $RELIGHT_SHADER_PATH, the shot's own folder and the standard library.
+ */
+static size_t candidates(const cJSON *o, const char *shot, struct candidate *c, size_t cap)
+{
+	size_t n = 0;
+	const char *src = shot_meta_str(o, "source"), *rel = shot_meta_str(o, "source_relative");
+	char shot_dir[4096];
+	const char *slash = shot ? strrchr(shot, '/') : NULL;
+	snprintf(shot_dir, sizeof(shot_dir), "%.*s", slash ? (int)(slash - shot) + 1 : 1,
+		 slash ? shot : ".");
+	if (rel && rel[0] != '/')
+		add_candidate(c, &n, cap, shot_dir, rel);
+	add_candidate(c, &n, cap, NULL, src);
+	const char *base = src ? strrchr(src, '/') : NULL;
+	base = base ? base + 1 : src;
+	const char *env = getenv("RELIGHT_SHADER_PATH");
+	if (env && *env) {
+		char *dirs = strdup(env), *save = NULL;
+		for (char *d = dirs ? strtok_r(dirs, ":", &save) : NULL; d;
+		     d = strtok_r(NULL, ":", &save))
+			add_candidate(c, &n, cap, d, base);
+		free(dirs);
+	}
+	add_candidate(c, &n, cap, shot_dir, base);
+	add_candidate(c, &n, cap, RELIGHT_SOURCE_SHADER_DIR, base);
+	add_candidate(c, &n, cap, RELIGHT_SHADER_DIR, base);
+	return n;
+}
+
+/*
+ * Whether @p is the program entry @o was baked with: the same program hash
+ * (the tokens compiled: comments and layout do not count), or for a shot
+ * of an earlier relight, which recorded none, the same source text.
+ */
+static bool same_program(const cJSON *o, const struct sl_program *p)
+{
+	const char *ph = shot_meta_str(o, "program_hash");
+	if (ph)
+		return !strcmp(sl_program_hash(p), ph);
+	const char *sh = shot_meta_str(o, "source_hash");
+	return sh && !strcmp(sl_program_source_hash(p), sh);
+}
+
 struct sl_program *shot_meta_shader(const cJSON *o, const char *shot, FILE *diag)
 {
-	const char *src = shot_meta_str(o, "source"), *hash = shot_meta_str(o, "source_hash");
+	const char *src = shot_meta_str(o, "source");
 	if (!diag)
 		diag = stderr;
-	if (!src || !hash) {
+	if (!src || (!shot_meta_str(o, "source_hash") && !shot_meta_str(o, "program_hash"))) {
 		fprintf(diag, "relight: error: %s: a shader entry of the metadata has no source\n",
 			shot);
 		return NULL;
 	}
-	struct sl_options so = { .diag = diag };
-	struct sl_program *p = sl_compile_file(src, &so);
-	if (!p) {
-		fprintf(diag, "relight: error: %s: cannot compile the shader '%s' the shot was "
-			"baked with\n", shot, src);
-		return NULL;
-	}
-	if (strcmp(sl_program_source_hash(p), hash)) {
-		fprintf(diag, "relight: error: %s: the shader '%s' changed since the bake; bake "
-			"the scene again\n", shot, src);
+	struct candidate c[16];
+	size_t n = candidates(o, shot, c, 16);
+	const char *changed = NULL, *broken = NULL;
+	for (size_t i = 0; i < n; i++) {
+		if (access(c[i].path, R_OK) != 0)
+			continue;
+		struct sl_options so = { .diag = diag };
+		struct sl_program *p = sl_compile_file(c[i].path, &so);
+		if (p && same_program(o, p))
+			return p;
+		if (!p && !broken)
+			broken = c[i].path;
+		if (p && !changed)
+			changed = c[i].path;
 		sl_program_destroy(p);
-		return NULL;
 	}
-	return p;
+	if (changed)
+		fprintf(diag, "relight: error: %s: the shader '%s' changed since the bake; bake "
+			"the scene again\n", shot, changed);
+	else if (broken)
+		fprintf(diag, "relight: error: %s: cannot compile the shader '%s' the shot was "
+			"baked with\n", shot, broken);
+	else
+		fprintf(diag, "relight: error: %s: cannot find the shader '%s' the shot was baked "
+			"with (not beside the shot as '%s', nor along $RELIGHT_SHADER_PATH or the "
+			"standard library)\n", shot, src,
+			shot_meta_str(o, "source_relative") ? shot_meta_str(o, "source_relative")
+							     : src);
+	return NULL;
 }
 
 struct sl_spec *shot_meta_specialize(const cJSON *meta, const cJSON *surface,

@@ -25,9 +25,13 @@ const char *shot_meta_str(const cJSON *o, const char *key);
 bool shot_meta_matrix(const cJSON *o, const char *key, float m[16]);
 
 /**
- * Compile the shader of entry @o ("source", "source_hash") as it was at bake
- * time. NULL with "relight: error: SHOT: ..." on @diag when it is missing,
- * does not compile, or changed since the bake.
+ * Compile the shader of entry @o as it was at bake time, found beside shot
+ * file @shot ("source_relative"), at its absolute path ("source"), or by
+ * its file name along $RELIGHT_SHADER_PATH, the shot's folder and the
+ * standard library, the first whose program is the one baked
+ * ("program_hash": comments and white space do not count; "source_hash" for
+ * shots that have none). NULL with "relight: error: SHOT: ..." on @diag
+ * when none is found, compiles, or is the same program.
  */
 struct sl_program *shot_meta_shader(const cJSON *o, const char *shot, FILE *diag);
 

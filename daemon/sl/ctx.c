@@ -14,6 +14,7 @@ void sl_ctx_init(struct sl_ctx *ctx, const struct sl_options *opts)
 	ctx->diag = ctx->opts.diag ? ctx->opts.diag : stderr;
 	ctx->max_errors = ctx->opts.max_errors > 0 ? ctx->opts.max_errors : 20;
 	rl_hash128_init(&ctx->source_hash);
+	rl_hash128_init(&ctx->program_hash);
 }
 
 void sl_ctx_finish(struct sl_ctx *ctx)

@@ -34,6 +34,9 @@ struct sl_ctx {
 	/* Every source text read (the file, its includes) and the -D definitions,
 	 * in order: the key of generated programs cached on disk. */
 	struct rl_hash128 source_hash;
+	/* The tokens the preprocessor hands the parser (kind and spelling):
+	 * what a shader compiles to, whatever its comments and layout. */
+	struct rl_hash128 program_hash;
 };
 
 void sl_ctx_init(struct sl_ctx *ctx, const struct sl_options *opts);

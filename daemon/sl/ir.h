@@ -190,6 +190,8 @@ struct sl_program {
 
 	/* Hash of the source texts (file, includes) and -D definitions, as 32 hex digits. */
 	char source_hash[33];
+	/* Hash of the tokens compiled (sl_program_hash), as 32 hex digits. */
+	char program_hash[33];
 };
 
 /** Print one instruction as "  12  add %t3:color <- %Cs, %t2  ; file:line". */

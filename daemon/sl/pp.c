@@ -654,6 +654,10 @@ static void emit(struct pp *pp, struct sl_token t)
 			}
 		}
 	}
+	uint32_t kind = (uint32_t)t.kind;
+	rl_hash128_add(&pp->ctx->program_hash, &kind, sizeof(kind));
+	rl_hash128_add(&pp->ctx->program_hash, &t.len, sizeof(t.len));
+	rl_hash128_add(&pp->ctx->program_hash, t.text, t.len);
 	rl_vec_push(*pp->out, t);
 }
 

@@ -33,6 +33,11 @@ const char *sl_program_source_hash(const struct sl_program *prog)
 	return prog->source_hash;
 }
 
+const char *sl_program_hash(const struct sl_program *prog)
+{
+	return prog->program_hash;
+}
+
 enum sl_shader_kind sl_program_kind(const struct sl_program *prog)
 {
 	return prog->kind;
@@ -106,6 +111,7 @@ static struct sl_program *compile(struct sl_ctx *ctx, const char *path, const ch
 	prog->source_path = rl_arena_strdup(prog->arena, path);
 	prog->nfiles = (uint32_t)ctx->files.len;
 	rl_hash128_hex(&ctx->source_hash, prog->source_hash);
+	rl_hash128_hex(&ctx->program_hash, prog->program_hash);
 	prog->files = rl_arena_alloc(prog->arena, sizeof(char *) * (ctx->files.len + 1));
 	for (size_t i = 0; i < ctx->files.len; i++)
 		prog->files[i] = rl_arena_strdup(prog->arena, ctx->files.data[i]);

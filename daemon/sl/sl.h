@@ -83,4 +83,12 @@ const char *sl_shader_kind_name(enum sl_shader_kind kind);
  */
 const char *sl_program_source_hash(const struct sl_program *prog);
 
+/**
+ * A hash of the program itself, as 32 hex digits: of the tokens compiled,
+ * after preprocessing (includes and macros expanded, comments, layout and
+ * unused definitions gone). A shader edited only in its comments or white
+ * space keeps it; one whose code changed does not. Shot files record it.
+ */
+const char *sl_program_hash(const struct sl_program *prog);
+
 #endif

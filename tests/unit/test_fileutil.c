@@ -1,4 +1,7 @@
-/* Copying a file and removing a folder tree (common/fileutil.h). */
+/*
+ * Copying a file, removing a folder tree, relative paths and stale temporary
+ * files (common/fileutil.h).
+ */
 #include "fileutil.h"
 #include "test.h"
 
@@ -69,6 +72,60 @@ static void test_remove_tree(void)
 	CHECK(!exists(d));
 }
 
+static void check_relative(const char *path, const char *dir, const char *want)
+{
+	char *got = rl_path_relative(path, dir);
+	CHECK_STR(got, want);
+	free(got);
+}
+
+static void test_relative(void)
+{
+	check_relative("/a/b/shaders/key.sl", "/a/b", "shaders/key.sl");
+	check_relative("/a/b/shaders/key.sl", "/a/b/", "shaders/key.sl");
+	check_relative("/a/shaders/key.sl", "/a/b/shots", "../../shaders/key.sl");
+	check_relative("/a/b", "/a/b", ".");
+	check_relative("/x/./y.sl", "/x/z/.", "../y.sl");
+	check_relative("/ab/c.sl", "/a", "../ab/c.sl");
+	check_relative("/a/c.sl", "/", "a/c.sl");
+}
+
+/* A temporary file's name has the writer's pid; stale ones go, nothing else does. */
+static void test_stale_temps(void)
+{
+	char d[256], path[400], err[64];
+	snprintf(d, sizeof(d), "%s/temps", root);
+	CHECK(rl_mkdir_p(d));
+	/* a write names its temporary file with this process's pid */
+	struct rl_atomic a;
+	snprintf(path, sizeof(path), "%s/x.exr", d);
+	CHECK(rl_atomic_open(&a, path));
+	char want[512];
+	snprintf(want, sizeof(want), "%s.tmp.%ld.", path, (long)getpid());
+	CHECK(!strncmp(a.tmp, want, strlen(want)));
+	rl_atomic_abort(&a);
+	static const char *const names[] = {
+		"x.exr.tmp.999999999.abcDEF", /* a pid no process has: stale */
+		"x.exr.tmp.1.abcdef",         /* init: alive */
+		"y.exr.tmp.999999999.abc123", /* stale, of another target */
+		"x.exr.tmp.abc",              /* no pid */
+		"x.exr.tmp.999999999.ab-c",   /* not the pattern */
+		"x.exr",
+	};
+	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]); i++) {
+		snprintf(path, sizeof(path), "%s/%s", d, names[i]);
+		CHECK(rl_write_file_atomic(path, "x", 1, err, sizeof(err)));
+	}
+	CHECK(rl_remove_stale_temps(d, "x.exr") == 1);
+	snprintf(path, sizeof(path), "%s/%s", d, names[0]);
+	CHECK(!exists(path));
+	CHECK(rl_remove_stale_temps(d, NULL) == 1);
+	for (size_t i = 1; i < sizeof(names) / sizeof(names[0]); i++) {
+		snprintf(path, sizeof(path), "%s/%s", d, names[i]);
+		CHECK(exists(path) == (i != 2));
+	}
+}
+
 int main(void)
 {
 	if (!mkdtemp(root)) {
@@ -77,6 +134,8 @@ int main(void)
 	}
 	RUN(test_copy);
 	RUN(test_remove_tree);
+	RUN(test_relative);
+	RUN(test_stale_temps);
 	rl_remove_tree(root);
 	CHECK(!exists(root));
 	return test_finish();

@@ -228,7 +228,7 @@ static bool no_temp_files(void)
 	bool clean = true;
 	struct dirent *e;
 	while ((e = readdir(d)))
-		if (strstr(e->d_name, ".tmp-"))
+		if (strstr(e->d_name, ".tmp."))
 			clean = false;
 	closedir(d);
 	return clean;

@@ -55,7 +55,7 @@ static void remove_tree(const char *path)
 	rmdir(path);
 }
 
-/* Files in @path whose names contain ".tmp-". */
+/* Files in @path whose names contain ".tmp.". */
 static int count_temps(const char *path)
 {
 	DIR *d = opendir(path);
@@ -64,7 +64,7 @@ static int count_temps(const char *path)
 	int n = 0;
 	struct dirent *e;
 	while ((e = readdir(d)))
-		if (strstr(e->d_name, ".tmp-"))
+		if (strstr(e->d_name, ".tmp."))
 			n++;
 	closedir(d);
 	return n;
