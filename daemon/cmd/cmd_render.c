@@ -112,8 +112,6 @@ struct render_job {
 	bool checking;          /* the first read: record the frames, render nothing */
 	struct frame_plan *plan;
 	uint32_t nplanned, cap;
-	int frames;             /* frames handed over in the rendering read */
-	int nerrors;            /* planning errors */
 };
 
 static char *xstrdup(const char *s)
@@ -307,6 +305,10 @@ static bool record_frame(struct render_job *j, const struct reyes_scene *scene)
 		j->cap = cap;
 	}
 	const struct reyes_options *so = &scene->opts;
+	if (scene->world != j->nplanned) {
+		fprintf(stderr, "relight render: error: a frame of the scene was not handed over\n");
+		return false;
+	}
 	struct frame_plan *f = &j->plan[j->nplanned];
 	*f = (struct frame_plan){
 		.number = so->numbered ? so->frame_number : (int32_t)j->nplanned + 1,
@@ -446,7 +448,8 @@ static bool on_frame(void *user, const struct reyes_scene *scene)
 	if (j->checking)
 		return record_frame(j, scene);
 
-	uint32_t at = (uint32_t)j->frames++;
+	/* by the world's place: a frame with errors found only now is not handed over */
+	uint32_t at = scene->world;
 	const struct reyes_options *so = &scene->opts;
 	if (at >= j->nplanned || j->plan[at].nouts != so->ndisplays) {
 		fprintf(stderr, "relight render: error: frame %u differs from the first read of "

@@ -1812,12 +1812,14 @@ static void world_end(struct ri *ri, bool render)
 	if (render && !ri->stop && ri->frame_errors == 0 && ri->opts->frame) {
 		struct reyes_scene sc;
 		build_scene(ri, &sc);
+		sc.world = ri->worlds;
 		if (!ri->opts->frame(ri->opts->user, &sc)) {
 			ri->nerrors++;
 			ri->stop = true;
 		}
 	}
 	ri->frame_errors = 0;
+	ri->worlds++;
 	/* Objects defined inside the world end with it. */
 	for (size_t i = ri->outer_objects; i < ri->objects.len; i++)
 		rl_vec_free(ri->objects.data[i].prims);

@@ -172,6 +172,7 @@ struct reyes_scene {
 	const char *const *space_names;
 	const float (*space_to_world)[16];
 	uint32_t nspaces;
+	uint32_t world;                 /* the world's place in the scene, from 0, rendered or not */
 };
 
 /** The variable named @name of @p, or NULL. */

@@ -92,6 +92,25 @@ run "-o pattern, one frame" "$relight" render -q -o 'one.####.exr' one.rib
 expect_status 0
 expect_file one.0007.exr
 
+# An error found only when rendering (MakeShadow of a missing depth map, not
+# run by the first read) holds back its frame; the next frame keeps its name.
+cat >late.rib <<RIB
+Format 16 16 1
+FrameBegin 1
+  MakeShadow "nothere.z" "nothere.shd"
+  $world
+FrameEnd
+FrameBegin 2
+  $world
+FrameEnd
+RIB
+run "an error found when rendering" "$relight" render -q -o late.exr late.rib
+expect_no_crash
+expect_status 1
+expect_stderr "^late.rib:3: error: MakeShadow 'nothere.z' -> 'nothere.shd' failed"
+expect_absent late.0001.exr
+expect_file late.0002.exr
+
 # Two frames of the same number with -o: refused.
 sed 's/FrameBegin 2/FrameBegin 1/' two.rib >same.rib
 run "-o with two frames numbered alike" "$relight" render -q -o same.exr same.rib
