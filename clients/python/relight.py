@@ -38,7 +38,7 @@ from urllib.parse import urlsplit
 __all__ = [
     "Client", "Image", "Tile", "Request", "WebSocket", "FrameDecoder", "Frame",
     "Error", "ServerError", "ProtocolError", "HandshakeError", "ConnectionClosed",
-    "ConnectError", "Timeout", "ArgumentError",
+    "ConnectError", "TLSError", "Timeout", "ArgumentError",
     "encode_frame", "parse_tile", "accept_key",
 ]
 
@@ -92,6 +92,17 @@ class ConnectError(Error, OSError):
     def __init__(self, message, errno=None):
         super().__init__(message)
         self.errno = errno
+
+
+class TLSError(ConnectError, ssl.SSLError):
+    """The TLS handshake failed (an untrusted certificate, say); also an ssl.SSLError."""
+
+    def __init__(self, message, errno=None):
+        super().__init__(message, errno)
+        self.message = message
+
+    def __str__(self):
+        return self.message
 
 
 class Timeout(Error, TimeoutError):
@@ -404,6 +415,10 @@ class WebSocket:
             except socket.timeout:
                 raise ConnectError("cannot connect to %s: no answer within %g s"
                                    % (where, timeout))
+            except ssl.SSLError as e:
+                raise TLSError("cannot connect to %s: TLS: %s"
+                               % (where, getattr(e, "verify_message", None) or e.reason or e),
+                               e.errno)
             except OSError as e:
                 raise ConnectError("cannot connect to %s: %s" % (where, e.strerror or e),
                                    e.errno)
@@ -547,8 +562,8 @@ class WebSocket:
 
     def recv(self, timeout=None):
         """The next message: str for text, bytes for binary. Raises
-        TimeoutError after `timeout` seconds (None: wait for ever) and
-        ConnectionClosed when the connection ends."""
+        relight.Timeout (a TimeoutError) after `timeout` seconds (None: wait
+        for ever) and ConnectionClosed when the connection ends."""
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             if self.close_code is not None:

@@ -16,6 +16,7 @@ import json
 import os
 import queue
 import socket
+import ssl
 import struct
 import sys
 import threading
@@ -618,6 +619,27 @@ def connect_errors_section():
         C.check(e.errno is not None, "a refused connection keeps its errno", repr(e))
     except Exception as e:
         C.check(False, "a refused connection is also an OSError", repr(e))
+
+    # wss:// to a server that does not speak TLS: relight.Error, also an ssl.SSLError.
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(1)
+
+    def not_tls():
+        conn, _ = srv.accept()
+        conn.sendall(b"HTTP/1.1 400 Bad Request\r\n\r\n" * 8)
+        time.sleep(0.5)
+        conn.close()
+    threading.Thread(target=not_tls, daemon=True).start()
+    try:
+        relight.WebSocket.connect("wss://127.0.0.1:%d/ws" % srv.getsockname()[1], timeout=5)
+        C.check(False, "a failed TLS handshake raises relight.Error", "connected")
+    except relight.Error as e:
+        C.check(isinstance(e, ssl.SSLError) and "TLS" in str(e),
+                "a failed TLS handshake is relight.Error and ssl.SSLError", repr(e))
+    except Exception as e:
+        C.check(False, "a failed TLS handshake raises relight.Error", repr(e))
+    srv.close()
 
     # A server that accepts and never answers: the request times out with relight.Error.
     def script(p):
