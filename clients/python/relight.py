@@ -25,6 +25,7 @@ import hashlib
 import json
 import logging
 import math
+import numbers
 import os
 import selectors
 import socket
@@ -37,6 +38,7 @@ from urllib.parse import urlsplit
 __all__ = [
     "Client", "Image", "Tile", "Request", "WebSocket", "FrameDecoder", "Frame",
     "Error", "ServerError", "ProtocolError", "HandshakeError", "ConnectionClosed",
+    "ConnectError", "TLSError", "Timeout", "ArgumentError",
     "encode_frame", "parse_tile", "accept_key",
 ]
 
@@ -81,6 +83,35 @@ class HandshakeError(Error):
         super().__init__(message)
         self.status = status
         self.headers = headers or {}
+
+
+class ConnectError(Error, OSError):
+    """The connection could not be made: refused, unreachable, an unknown host, a
+    failed TLS handshake (`errno` as the system gave it, or None)."""
+
+    def __init__(self, message, errno=None):
+        super().__init__(message)
+        self.errno = errno
+
+
+class TLSError(ConnectError, ssl.SSLError):
+    """The TLS handshake failed (an untrusted certificate, say); also an ssl.SSLError."""
+
+    def __init__(self, message, errno=None):
+        super().__init__(message, errno)
+        self.message = message
+
+    def __str__(self):
+        return self.message
+
+
+class Timeout(Error, TimeoutError):
+    """No reply or message came in time."""
+
+
+class ArgumentError(Error, ValueError, TypeError):
+    """A value the protocol cannot carry, found before sending: a string or None
+    where a number is expected, NaN or an infinity, the wrong count of values."""
 
 
 class ConnectionClosed(Error):
@@ -251,11 +282,14 @@ def parse_url(url):
     u = urlsplit(url)
     scheme = u.scheme.lower()
     if scheme not in ("ws", "wss", "http", "https"):
-        raise ValueError("%s: not a ws:// or wss:// URL" % url)
+        raise ArgumentError("%s: not a ws:// or wss:// URL" % url)
     if not u.hostname:
-        raise ValueError("%s: no host" % url)
+        raise ArgumentError("%s: no host" % url)
     tls = scheme in ("wss", "https")
-    port = u.port or (443 if tls else 80)
+    try:
+        port = u.port or (443 if tls else 80)
+    except ValueError:
+        raise ArgumentError("%s: the port must be 1 to 65535" % url)
     path = u.path if u.path not in ("", "/") else "/ws"
     if u.query:
         path += "?" + u.query
@@ -362,16 +396,32 @@ class WebSocket:
                 headers=None, ssl_context=None):
         """Open a connection: TCP (and TLS for wss://), then the upgrade."""
         tls, host, port, path = parse_url(url)
-        sock = socket.create_connection((host, port), timeout=timeout)
+        where = _header_host(host, port, tls)
+        try:
+            sock = socket.create_connection((host, port), timeout=timeout)
+        except socket.timeout:
+            raise ConnectError("cannot connect to %s: no answer within %g s" % (where, timeout))
+        except OSError as e:
+            raise ConnectError("cannot connect to %s: %s" % (where, e.strerror or e), e.errno)
         try:
             # Small JSON requests must leave at once, not wait on Nagle.
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            if tls:
-                ctx = ssl_context or ssl.create_default_context()
-                sock = ctx.wrap_socket(sock, server_hostname=host)
-            key = base64.b64encode(os.urandom(16)).decode("ascii")
-            sock.sendall(build_handshake(_header_host(host, port, tls), path, key, subprotocols,
-                                         origin, headers))
+            try:
+                if tls:
+                    ctx = ssl_context or ssl.create_default_context()
+                    sock = ctx.wrap_socket(sock, server_hostname=host)
+                key = base64.b64encode(os.urandom(16)).decode("ascii")
+                sock.sendall(build_handshake(where, path, key, subprotocols, origin, headers))
+            except socket.timeout:
+                raise ConnectError("cannot connect to %s: no answer within %g s"
+                                   % (where, timeout))
+            except ssl.SSLError as e:
+                raise TLSError("cannot connect to %s: TLS: %s"
+                               % (where, getattr(e, "verify_message", None) or e.reason or e),
+                               e.errno)
+            except OSError as e:
+                raise ConnectError("cannot connect to %s: %s" % (where, e.strerror or e),
+                                   e.errno)
             data = b""
             deadline = time.monotonic() + timeout
             while b"\r\n\r\n" not in data:
@@ -382,6 +432,9 @@ class WebSocket:
                     chunk = sock.recv(4096)
                 except socket.timeout:
                     raise HandshakeError("no reply to the upgrade within %g s" % timeout)
+                except OSError as e:
+                    raise ConnectError("cannot connect to %s: %s" % (where, e.strerror or e),
+                                       e.errno)
                 if not chunk:
                     raise HandshakeError("connection closed during the upgrade")
                 data += chunk
@@ -509,8 +562,8 @@ class WebSocket:
 
     def recv(self, timeout=None):
         """The next message: str for text, bytes for binary. Raises
-        TimeoutError after `timeout` seconds (None: wait for ever) and
-        ConnectionClosed when the connection ends."""
+        relight.Timeout (a TimeoutError) after `timeout` seconds (None: wait
+        for ever) and ConnectionClosed when the connection ends."""
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             if self.close_code is not None:
@@ -522,7 +575,7 @@ class WebSocket:
             if frame is None:
                 left = None if deadline is None else max(0.0, deadline - time.monotonic())
                 if not self._fill(left) and left is not None and left <= 0:
-                    raise TimeoutError("no message within %g s" % timeout)
+                    raise Timeout("no message within %g s" % timeout)
                 continue
             msg = self._frame(frame)
             if msg is not None:
@@ -691,7 +744,7 @@ class Request:
                                "its own thread): use the *_async calls there" % self.op)
         while not self._event.wait(max(0.0, self.touched + timeout - time.monotonic())):
             if time.monotonic() >= self.touched + timeout:
-                raise TimeoutError("%s: no reply within %g s" % (self.op, timeout))
+                raise Timeout("%s: no reply within %g s" % (self.op, timeout))
         if self._error is not None:
             raise self._error
         return self._reply
@@ -723,20 +776,31 @@ def _param_name(name):
     return name[:-1] if name.endswith("_") and not name.endswith("__") else name
 
 
+def _is_number(x):
+    # numbers.Real takes numpy's scalars too; a bool is not a value of a light
+    return isinstance(x, numbers.Real) and not isinstance(x, bool)
+
+
 def _param_value(name, v):
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        values = [v]
+    if _is_number(v):
+        values = [float(v)]
+    elif isinstance(v, (str, bytes, bytearray, dict)) or not hasattr(v, "__iter__"):
+        raise ArgumentError("parameter %r: a number or a sequence of numbers, not %r"
+                            % (name, v))
     else:
-        try:
-            values = [float(x) for x in v]
-        except TypeError:
-            raise TypeError("parameter %r: a number or a sequence of numbers, not %r" % (name, v))
+        values = list(v)
         if not 1 <= len(values) <= 16:
-            raise ValueError("parameter %r: 1 to 16 values, not %d" % (name, len(values)))
+            raise ArgumentError("parameter %r: 1 to 16 values, not %d" % (name, len(values)))
+        for x in values:
+            if not _is_number(x):
+                raise ArgumentError("parameter %r: %r is not a number" % (name, x))
+        values = [float(x) for x in values]
     for x in values:
         if not math.isfinite(x):
-            raise ValueError("parameter %r: %r is not a finite number" % (name, x))
-    return values[0] if len(values) == 1 and not isinstance(v, (list, tuple)) else values
+            raise ArgumentError("parameter %r: %r is not a finite number" % (name, x))
+    if not _is_number(v):
+        return values
+    return v if type(v) in (int, float) else values[0]
 
 
 def _params(params, kw):
@@ -857,7 +921,7 @@ class Client:
         try:
             text = json.dumps(msg, allow_nan=False)
         except ValueError as e:
-            raise ValueError("%s: %s" % (op, e))
+            raise ArgumentError("%s: %s" % (op, e))
         req = Request(rid, op, self.timeout)
         req._reader = self._reader
         for k, v in attrs.items():
@@ -886,7 +950,7 @@ class Client:
         value, min and max). A RIB not baked yet is baked first; its progress
         goes to on_progress and keeps the request alive."""
         if format not in FORMAT_IDS:
-            raise ValueError("format is 'rgba8' or 'rgba16f', not %r" % (format,))
+            raise ArgumentError("format is 'rgba8' or 'rgba16f', not %r" % (format,))
         return self._send("open", {"shot": shot, "format": format}, format=format,
                           on_progress=on_progress).result()
 
@@ -962,8 +1026,8 @@ class Client:
                     raise self._closed
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    raise TimeoutError("level %d of edit %d not complete within %g s"
-                                       % (level, edit, timeout))
+                    raise Timeout("level %d of edit %d not complete within %g s"
+                                  % (level, edit, timeout))
                 self._cond.wait(left)
             return self.images.get(self.format)
 

@@ -71,10 +71,31 @@ static void usage(FILE *out)
 		"  -h, --help           Show this help and exit\n"
 		"\n"
 		"Exit status: 0 on success, 1 when the shot cannot be read or resolved, 2 on a\n"
-		"usage error.\n");
+		"usage error, 3 when the image was written but is not the shot's: a shadow\n"
+		"map or texture it reads could not be read (named in a warning), so its\n"
+		"lookups gave their fill value.\n");
 }
 
 #define usage_error(...) cmd_usage_error("preview", __VA_ARGS__)
+
+/* The exit status of an image written with maps missing: not the shot's image. */
+enum { CMD_NOT_THE_SHOT = 3 };
+
+/*
+ * @rc, or CMD_NOT_THE_SHOT when it is CMD_OK but maps could not be read
+ * since @unread (reyes_tex_unread_maps() before the preview).
+ */
+static int check_maps(int rc, uint64_t unread, const char *output)
+{
+	uint64_t missing = reyes_tex_unread_maps() - unread;
+	if (rc != CMD_OK || missing == 0)
+		return rc;
+	fprintf(stderr, "relight preview: error: %s is not the shot's image: %llu shadow map%s or "
+		"texture%s could not be read (see the warnings; run where 'relight bake' ran, "
+		"beside the maps)\n", output, (unsigned long long)missing, missing > 1 ? "s" : "",
+		missing > 1 ? "s" : "");
+	return CMD_NOT_THE_SHOT;
+}
 
 static char *default_output(const char *shot)
 {
@@ -278,9 +299,11 @@ int cmd_preview(int argc, char **argv)
 		free(out_alloc);
 		return usage_error("--half and PNG output are the GPU runtime's; not with --cpu");
 	}
+	uint64_t unread = reyes_tex_unread_maps();
 	if (!cpu) {
 		int rc = output ? preview_gpu(shot, output, level, edits, nedits, json, quiet, half)
 				: CMD_FAILED;
+		rc = check_maps(rc, unread, output);
 		free(out_alloc);
 		return rc;
 	}
@@ -305,6 +328,7 @@ int cmd_preview(int argc, char **argv)
 				(unsigned long long)res.entries, res.resolve_seconds);
 		free(res.rgba);
 	}
+	int rc = check_maps(ok ? CMD_OK : CMD_FAILED, unread, output);
 	free(out_alloc);
-	return ok ? CMD_OK : CMD_FAILED;
+	return rc;
 }

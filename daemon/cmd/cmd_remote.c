@@ -197,6 +197,25 @@ static int fail(struct session *s, const char *fmt, ...)
 	return CMD_FAILED;
 }
 
+/*
+ * The server's error messages begin with the request's op ("open: no shot
+ * 'x'"), which fail() has already printed as the command: the text after
+ * that prefix, when it names @op (an op, or a command where '-' stands for
+ * '_').
+ */
+static const char *without_op(const char *msg, const char *op)
+{
+	size_t n = strlen(op);
+	if (n == 0)
+		return msg;
+	for (size_t i = 0; i < n; i++) {
+		char a = msg[i] == '-' ? '_' : msg[i], b = op[i] == '-' ? '_' : op[i];
+		if (a == '\0' || a != b)
+			return msg;
+	}
+	return msg[n] == ':' && msg[n + 1] == ' ' ? msg + n + 2 : msg;
+}
+
 /* ---- the command line ---- */
 
 /*
@@ -547,7 +566,7 @@ static int on_event(struct session *s, struct remote_event *ev, bool watching)
 		s->open = false;
 	const char *code, *msg;
 	if (!watching && remote_reply_error(j, &code, &msg))
-		return fail(s, "%s: %s", code, msg);
+		return fail(s, "%s: %s", code, without_op(msg, s->cmd));
 	return CMD_OK;
 }
 
@@ -586,12 +605,14 @@ static int request(struct session *s, cJSON *req, cJSON **reply)
 	if (!req)
 		return fail(s, "out of memory");
 	bool ok = remote_request(s->r, req, reply, timeout_ms(s));
+	char op[32];
+	snprintf(op, sizeof(op), "%s", str(req, "op"));
 	cJSON_Delete(req);
 	if (!ok)
 		return fail(s, "%s", remote_error(s->r));
 	const char *code, *msg;
 	if (remote_reply_error(*reply, &code, &msg)) {
-		int rc = fail(s, "%s: %s", code, msg);
+		int rc = fail(s, "%s: %s", code, without_op(msg, op));
 		cJSON_Delete(*reply);
 		*reply = NULL;
 		return rc;

@@ -1,8 +1,10 @@
 /*
  * relight render: the final-frame reference renderer. Reads a RIB scene and
  * renders each of its frames with the REYES pipeline to the displays it
- * names (OpenEXR).
+ * names (OpenEXR or PNG), every output planned before the first frame.
  */
+/* realpath() is an X/Open part of POSIX 2008. */
+#define _XOPEN_SOURCE 700
 #include "cmd.h"
 #include "reyes.h"
 #include "ri.h"
@@ -14,6 +16,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <unistd.h>
 
 enum { MAX_EDITS = 64, MAX_EDIT_LEN = 256 };
@@ -25,11 +28,24 @@ static void usage(FILE *out)
 		"\n"
 		"Render a RIB scene (plain or gzip-compressed) with relight's REYES renderer,\n"
 		"the final-frame reference of every preview. Each frame (FrameBegin..FrameEnd,\n"
-		"or WorldBegin..WorldEnd) is written to the displays it names, as OpenEXR.\n"
+		"or WorldBegin..WorldEnd) is written to the displays it names: Display type\n"
+		"\"file\" as OpenEXR (PNG when the name ends in .png), \"openexr\", \"png\", and\n"
+		"depth maps \"zfile\" and \"shadow\". A \"framebuffer\" display is skipped with a\n"
+		"warning; any other type or extension (tiff, .jpg) is an error.\n"
+		"\n"
+		"The whole scene is read and checked first: nothing is rendered or written when\n"
+		"it has errors, a --set edit does not fit it, or two outputs (two displays, two\n"
+		"frames) would write the same file.\n"
 		"\n"
 		"Options:\n"
-		"  -o, --output FILE      Write the image to FILE instead of the name in the\n"
-		"                         scene's first image Display\n"
+		"  -o, --output FILE      Write each frame's first image display to FILE (.exr,\n"
+		"                         no extension: OpenEXR; .png: PNG), its other image\n"
+		"                         displays to FILE with their mode before the\n"
+		"                         extension (out.N.exr). With several frames, the\n"
+		"                         frame number (FrameBegin's) goes before the\n"
+		"                         extension: out.0001.exr; or where FILE has a run of\n"
+		"                         '#' or a %%d / %%04d: out.####.exr. Shadow passes keep\n"
+		"                         their maps' names\n"
 		"  -t, --threads N        Render with N threads (default: all cores)\n"
 		"  --crop X0 X1 Y0 Y1     Render only pixels X0 <= x < X1, Y0 <= y < Y1 (others\n"
 		"                         stay empty); overrides the scene's CropWindow\n"
@@ -52,40 +68,437 @@ static void usage(FILE *out)
 		"gives the time, the micropolygons shaded, the subpixel samples and the peak memory.\n"
 		"\n"
 		"Exit status: 0 on success, 1 when the scene has errors (reported as\n"
-		"FILE:LINE: error: MESSAGE; a --set edit that does not fit its light is one)\n"
-		"or an image cannot be written, 2 on a usage error.\n",
+		"FILE:LINE: error: MESSAGE; a --set edit that does not fit, a display that\n"
+		"cannot be written and two outputs of one name are errors) or an image cannot\n"
+		"be written, 2 on a usage error (an -o extension relight does not write too).\n",
 		MAX_EDITS, RELIGHT_SOURCE_SHADER_DIR);
 }
 
 #define usage_error(...) cmd_usage_error("render", __VA_ARGS__)
 
+/* ---- outputs ------------------------------------------------------------------------------ */
+
+/*
+ * Every file a run writes is planned before anything renders: a first read
+ * of the scene (check_only: no rendering, no MakeTexture or MakeShadow)
+ * records each frame's displays, then each gets its file name and format,
+ * and a display relight cannot write, or two outputs naming one file, stop
+ * the run before the first frame.
+ */
+
+enum out_kind { OUT_EXR, OUT_PNG, OUT_DEPTH, OUT_SKIP };
+
+/* One display of one frame, as the run writes it. */
+struct out {
+	char *name;             /* the file written (owned) */
+	char *key;              /* the same, with its folder resolved: compared for collisions */
+	enum out_kind kind;
+	char *where;            /* "FILE:LINE" of the Display, or the scene's name (owned) */
+	char *type, *mode;      /* as the scene gives them (owned) */
+	bool from_output;       /* named after -o */
+};
+
+struct frame_plan {
+	int32_t number;         /* FrameBegin's number, else the frame's place from 1 */
+	bool shadow_pass;       /* depth maps only */
+	struct out *outs;
+	uint32_t nouts;
+};
+
 struct render_job {
 	struct reyes_render_opts ro;
 	bool quiet;
-	int frames;
+	const char *output;     /* -o, or NULL */
+	bool checking;          /* the first read: record the frames, render nothing */
+	struct frame_plan *plan;
+	uint32_t nplanned, cap;
 };
+
+static char *xstrdup(const char *s)
+{
+	char *d = strdup(s ? s : "");
+	if (!d) {
+		fprintf(stderr, "relight render: error: out of memory\n");
+		exit(CMD_FAILED);
+	}
+	return d;
+}
+
+static char *xprintf(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
+
+static char *xprintf(const char *fmt, ...)
+{
+	va_list ap;
+	va_start(ap, fmt);
+	int n = vsnprintf(NULL, 0, fmt, ap);
+	va_end(ap);
+	char *s = malloc((size_t)(n > 0 ? n : 0) + 1);
+	if (!s) {
+		fprintf(stderr, "relight render: error: out of memory\n");
+		exit(CMD_FAILED);
+	}
+	va_start(ap, fmt);
+	vsnprintf(s, (size_t)n + 1, fmt, ap);
+	va_end(ap);
+	return s;
+}
+
+static void plan_free(struct render_job *j)
+{
+	for (uint32_t i = 0; i < j->nplanned; i++) {
+		for (uint32_t k = 0; k < j->plan[i].nouts; k++) {
+			struct out *o = &j->plan[i].outs[k];
+			free(o->name);
+			free(o->key);
+			free(o->where);
+			free(o->type);
+			free(o->mode);
+		}
+		free(j->plan[i].outs);
+	}
+	free(j->plan);
+	j->plan = NULL;
+	j->nplanned = j->cap = 0;
+}
+
+static bool is_depth(const struct reyes_display *d)
+{
+	return !strcmp(d->type, "zfile") || !strcmp(d->type, "shadow") || !strcmp(d->mode, "z");
+}
+
+/* The extension of @name's last component, without the dot ("" when none). */
+static const char *extension(const char *name)
+{
+	const char *base = strrchr(name, '/');
+	base = base ? base + 1 : name;
+	const char *dot = strrchr(base, '.');
+	return dot && dot != base ? dot + 1 : "";
+}
+
+static bool ext_is(const char *ext, const char *want)
+{
+	return strcasecmp(ext, want) == 0;
+}
+
+/* The format of an -o name: OpenEXR (.exr or no extension) or PNG; false for others. */
+static bool output_kind(const char *name, enum out_kind *kind)
+{
+	const char *ext = extension(name);
+	if (!*ext || ext_is(ext, "exr"))
+		*kind = OUT_EXR;
+	else if (ext_is(ext, "png"))
+		*kind = OUT_PNG;
+	else
+		return false;
+	return true;
+}
+
+#define WRITTEN "relight writes Display types \"file\" (OpenEXR, or PNG for a name ending " \
+		"in .png), \"openexr\" and \"png\", depth maps \"zfile\" and \"shadow\", and skips " \
+		"\"framebuffer\""
+
+/* A display's format from its type and name; false (reported at @o->where) when unwritable. */
+static bool display_kind(struct out *o)
+{
+	const char *ext = extension(o->name);
+	const char *t = o->type;
+	bool exr_name = !*ext || ext_is(ext, "exr"), png_name = ext_is(ext, "png");
+	if (!strcmp(t, "framebuffer") || !strcmp(t, "it")) {
+		fprintf(stderr, "%s: warning: Display \"%s\" \"%s\": relight has no framebuffer; "
+			"the display is skipped (-o FILE writes it to a file)\n", o->where, o->name,
+			t);
+		o->kind = OUT_SKIP;
+		return true;
+	}
+	if (!strcmp(t, "file") && (exr_name || png_name)) {
+		o->kind = png_name ? OUT_PNG : OUT_EXR;
+		return true;
+	}
+	if ((!strcmp(t, "openexr") || !strcmp(t, "exr")) && exr_name) {
+		o->kind = OUT_EXR;
+		return true;
+	}
+	if (!strcmp(t, "png") && (png_name || !*ext)) {
+		o->kind = OUT_PNG;
+		return true;
+	}
+	if (!strcmp(t, "file") || !strcmp(t, "openexr") || !strcmp(t, "exr") || !strcmp(t, "png"))
+		fprintf(stderr, "%s: error: Display \"%s\" \"%s\": a file name ending in .%s is "
+			"not an image relight writes (.exr or .png)\n", o->where, o->name, t, ext);
+	else
+		fprintf(stderr, "%s: error: Display \"%s\" \"%s\": type '%s' cannot be written; "
+			WRITTEN "\n", o->where, o->name, t, t);
+	return false;
+}
+
+/* A PNG holds one of the modes rgba, rgb, a, or one output variable (no depth). */
+static bool png_mode_ok(const char *mode)
+{
+	return strcmp(mode, "z") && strcmp(mode, "rgbaz") && !strchr(mode, ',');
+}
+
+/*
+ * @base with the frame number @n: a run of '#' becomes @n with as many
+ * digits (at least), else "%d" or "%0Nd" (N from 1 to 9) becomes @n printed
+ * so; without either, @numbered inserts ".NNNN" before the extension.
+ */
+static char *frame_name(const char *base, int32_t n, bool numbered)
+{
+	const char *hash = strchr(base, '#');
+	if (hash) {
+		size_t w = strspn(hash, "#");
+		return xprintf("%.*s%0*d%s", (int)(hash - base), base, (int)w, (int)n, hash + w);
+	}
+	for (const char *p = strchr(base, '%'); p; p = strchr(p + 1, '%')) {
+		const char *q = p + 1;
+		int w = 0;
+		if (q[0] == '0' && q[1] >= '1' && q[1] <= '9') {
+			w = q[1] - '0';
+			q += 2;
+		}
+		if (*q == 'd')
+			return xprintf("%.*s%0*d%s", (int)(p - base), base, w, (int)n, q + 1);
+	}
+	if (!numbered)
+		return xstrdup(base);
+	const char *ext = extension(base);
+	size_t stem = *ext ? (size_t)(ext - 1 - base) : strlen(base);
+	return xprintf("%.*s.%04d%s%s", (int)stem, base, (int)n, *ext ? "." : "", ext);
+}
+
+/* @base with ".TAG" before its extension; TAG is @mode, commas turned into '_'. */
+static char *with_mode(const char *base, const char *mode)
+{
+	const char *ext = extension(base);
+	size_t stem = *ext ? (size_t)(ext - 1 - base) : strlen(base);
+	char *s = xprintf("%.*s.%s%s%s", (int)stem, base, mode, *ext ? "." : "", ext);
+	for (char *c = s + stem + 1; *c && *c != '.'; c++)
+		if (*c == ',')
+			*c = '_';
+	return s;
+}
+
+/* @name with its folder resolved, so that "./a.exr" and "a.exr" compare equal. */
+static char *file_key(const char *name)
+{
+	const char *slash = strrchr(name, '/');
+	char *dir = slash ? xprintf("%.*s", (int)(slash - name + (slash == name)), name)
+			  : xstrdup(".");
+	char *real = realpath(dir, NULL);
+	char *key = real ? xprintf("%s/%s", real, slash ? slash + 1 : name) : xstrdup(name);
+	free(real);
+	free(dir);
+	return key;
+}
+
+/* The check read's frame: its displays as the scene gives them. */
+static bool record_frame(struct render_job *j, const struct reyes_scene *scene)
+{
+	if (j->nplanned == j->cap) {
+		uint32_t cap = j->cap ? j->cap * 2 : 8;
+		struct frame_plan *p = realloc(j->plan, cap * sizeof(*p));
+		if (!p) {
+			fprintf(stderr, "relight render: error: out of memory\n");
+			return false;
+		}
+		j->plan = p;
+		j->cap = cap;
+	}
+	const struct reyes_options *so = &scene->opts;
+	if (scene->world != j->nplanned) {
+		fprintf(stderr, "relight render: error: a frame of the scene was not handed over\n");
+		return false;
+	}
+	struct frame_plan *f = &j->plan[j->nplanned];
+	*f = (struct frame_plan){
+		.number = so->numbered ? so->frame_number : (int32_t)j->nplanned + 1,
+		.shadow_pass = reyes_scene_is_shadow_pass(scene),
+		.outs = calloc(so->ndisplays ? so->ndisplays : 1, sizeof(*f->outs)),
+		.nouts = so->ndisplays,
+	};
+	if (!f->outs) {
+		fprintf(stderr, "relight render: error: out of memory\n");
+		return false;
+	}
+	j->nplanned++;
+	for (uint32_t k = 0; k < so->ndisplays; k++) {
+		const struct reyes_display *d = &so->displays[k];
+		struct out *o = &f->outs[k];
+		o->name = xstrdup(d->name);
+		o->type = xstrdup(d->type);
+		o->mode = xstrdup(d->mode);
+		o->kind = is_depth(d) ? OUT_DEPTH : OUT_EXR;
+		o->where = d->file && d->line ? xprintf("%s:%u", d->file, d->line)
+					      : xstrdup(d->file ? d->file : "(scene)");
+	}
+	return true;
+}
+
+static int cmp_out(const void *a, const void *b)
+{
+	const struct out *x = *(const struct out *const *)a, *y = *(const struct out *const *)b;
+	return strcmp(x->key, y->key);
+}
+
+/* The frame of output @o (a pointer into the plan). */
+static const struct frame_plan *frame_of(const struct render_job *j, const struct out *o)
+{
+	for (uint32_t i = 0; i < j->nplanned; i++)
+		if (o >= j->plan[i].outs && o < j->plan[i].outs + j->plan[i].nouts)
+			return &j->plan[i];
+	return NULL;
+}
+
+/*
+ * Name every output and check them: formats relight writes, no two outputs
+ * naming one file (a depth map may be written again by a later frame: shadow
+ * passes of an animation reuse their maps). Errors are printed; false if any.
+ */
+static bool plan_outputs(struct render_job *j)
+{
+	uint32_t image_frames = 0;
+	for (uint32_t i = 0; i < j->nplanned; i++)
+		image_frames += !j->plan[i].shadow_pass;
+	enum out_kind okind = OUT_EXR;
+	if (j->output)
+		output_kind(j->output, &okind);     /* checked with the options */
+	bool ok = true;
+	size_t total = 0;
+	for (uint32_t i = 0; i < j->nplanned; i++) {
+		struct frame_plan *f = &j->plan[i];
+		bool first = true;
+		for (uint32_t k = 0; k < f->nouts; k++) {
+			struct out *o = &f->outs[k];
+			if (o->kind == OUT_DEPTH) {
+				/* a shadow pass keeps its names: the frames after it read the maps */
+			} else if (j->output) {
+				char *base = first ? xstrdup(j->output) : with_mode(j->output, o->mode);
+				free(o->name);
+				o->name = frame_name(base, f->number, image_frames > 1);
+				free(base);
+				o->kind = okind;
+				o->from_output = true;
+				first = false;
+			} else if (!display_kind(o)) {
+				ok = false;
+				continue;
+			}
+			if (o->kind == OUT_PNG && !png_mode_ok(o->mode)) {
+				fprintf(stderr, "%s: error: %s: a PNG holds the mode rgba, rgb, a or one "
+					"output variable, not '%s' (write it to .exr)\n", o->where,
+					o->name, o->mode);
+				ok = false;
+			}
+			o->key = file_key(o->name);
+			total++;
+		}
+	}
+	if (!ok)
+		return false;
+
+	struct out **all = malloc((total ? total : 1) * sizeof(*all));
+	if (!all) {
+		fprintf(stderr, "relight render: error: out of memory\n");
+		return false;
+	}
+	size_t n = 0;
+	for (uint32_t i = 0; i < j->nplanned; i++)
+		for (uint32_t k = 0; k < j->plan[i].nouts; k++)
+			if (j->plan[i].outs[k].kind != OUT_SKIP)
+				all[n++] = &j->plan[i].outs[k];
+	qsort(all, n, sizeof(*all), cmp_out);
+	for (size_t a = 0; a + 1 < n; a++) {
+		const struct out *x = all[a], *y = all[a + 1];
+		if (strcmp(x->key, y->key) != 0)
+			continue;
+		const struct frame_plan *fx = frame_of(j, x), *fy = frame_of(j, y);
+		if (fx != fy && x->kind == OUT_DEPTH && y->kind == OUT_DEPTH)
+			continue;
+		if (fy < fx) {
+			const struct out *t = x;
+			x = y;
+			y = t;
+			const struct frame_plan *tf = fx;
+			fx = fy;
+			fy = tf;
+		}
+		if (y->from_output)
+			fprintf(stderr, "relight render: error: -o %s: frames %d and %d would both "
+				"write %s (a '#' run or %%04d in the name numbers the frames)\n",
+				j->output, (int)fx->number, (int)fy->number, y->name);
+		else if (fx == fy)
+			fprintf(stderr, "%s: error: Display \"%s\": the frame's display at %s writes "
+				"that file too; each display needs a file of its own\n", y->where,
+				y->name, x->where);
+		else
+			fprintf(stderr, "%s: error: Display \"%s\" of frame %d would write over frame "
+				"%d's (%s); give each frame's displays their own names\n", y->where,
+				y->name, (int)fy->number, (int)fx->number, x->where);
+		ok = false;
+	}
+	free(all);
+	return ok;
+}
+
+/* ---- frames ------------------------------------------------------------------------------- */
 
 static bool on_frame(void *user, const struct reyes_scene *scene)
 {
 	struct render_job *j = user;
-	struct reyes_stats st = { 0 };
-	j->frames++;
-	if (!j->quiet && j->ro.progress)
-		fprintf(stderr, "frame %d: %ux%u, %u primitives, %u lights\n", j->frames,
-			scene->opts.xres, scene->opts.yres, scene->nprims, scene->nlights);
-	if (!reyes_render(scene, &j->ro, &st))
+	if (j->checking)
+		return record_frame(j, scene);
+
+	/* by the world's place: a frame with errors found only now is not handed over */
+	uint32_t at = scene->world;
+	const struct reyes_options *so = &scene->opts;
+	if (at >= j->nplanned || j->plan[at].nouts != so->ndisplays) {
+		fprintf(stderr, "relight render: error: frame %u differs from the first read of "
+			"the scene\n", at + 1);
 		return false;
-	if (!j->quiet) {
-		for (uint32_t i = 0; i < scene->opts.ndisplays; i++)
-			fprintf(stderr, "wrote %s\n", scene->opts.displays[i].name);
+	}
+	const struct frame_plan *f = &j->plan[at];
+	struct reyes_display *ds = calloc(so->ndisplays ? so->ndisplays : 1, sizeof(*ds));
+	if (!ds) {
+		fprintf(stderr, "relight render: error: out of memory\n");
+		return false;
+	}
+	uint32_t nd = 0;
+	for (uint32_t k = 0; k < so->ndisplays; k++) {
+		const struct out *o = &f->outs[k];
+		if (o->kind == OUT_SKIP)
+			continue;
+		ds[nd] = so->displays[k];
+		ds[nd].name = o->name;
+		ds[nd].png = o->kind == OUT_PNG;
+		nd++;
+	}
+	bool ok = true;
+	if (nd == 0) {
+		if (!j->quiet)
+			fprintf(stderr, "frame %d: nothing to write: not rendered\n", (int)f->number);
+		goto out;
+	}
+	struct reyes_scene sc = *scene;
+	sc.opts.displays = ds;
+	sc.opts.ndisplays = nd;
+	struct reyes_stats st = { 0 };
+	if (!j->quiet && j->ro.progress)
+		fprintf(stderr, "frame %d: %ux%u, %u primitives, %u lights\n", (int)f->number,
+			so->xres, so->yres, scene->nprims, scene->nlights);
+	ok = reyes_render(&sc, &j->ro, &st);
+	if (ok && !j->quiet) {
+		for (uint32_t i = 0; i < nd; i++)
+			fprintf(stderr, "wrote %s\n", ds[i].name);
 		fprintf(stderr,
 			"frame %d: %.2f s, %llu grids, %llu micropolygons shaded, %llu subpixel "
 			"samples, peak memory %.1f MB\n",
-			j->frames, st.seconds, (unsigned long long)st.grids,
+			(int)f->number, st.seconds, (unsigned long long)st.grids,
 			(unsigned long long)st.micropolygons, (unsigned long long)st.samples,
 			(double)st.peak_bytes / (1024.0 * 1024.0));
 	}
-	return true;
+out:
+	free(ds);
+	return ok;
 }
 
 int cmd_render(int argc, char **argv)
@@ -113,9 +526,17 @@ int cmd_render(int argc, char **argv)
 		case 'h':
 			usage(stdout);
 			return CMD_OK;
-		case 'o':
+		case 'o': {
+			enum out_kind kind;
+			if (!*optarg || optarg[strlen(optarg) - 1] == '/')
+				return usage_error("--output needs a file name, not '%s'", optarg);
+			if (!output_kind(optarg, &kind))
+				return usage_error("--output %s: relight writes OpenEXR (.exr, or no "
+						   "extension) and PNG (.png), not .%s", optarg,
+						   extension(optarg));
 			output = optarg;
 			break;
+		}
 		case 't':
 			if (!cmd_parse_uint(optarg, 64, &job.ro.threads) || job.ro.threads == 0)
 				return usage_error("--threads needs a number from 1 to 64, not '%s'",
@@ -180,6 +601,7 @@ int cmd_render(int argc, char **argv)
 	}
 	job.ro.progress = !job.quiet && isatty(2);
 	job.ro.diag = stderr;
+	job.output = output;
 
 	char shader_path[8192];
 	cmd_shader_path(shader_path, sizeof(shader_path));
@@ -187,18 +609,53 @@ int cmd_render(int argc, char **argv)
 		.diag = stderr,
 		.default_shader_path = shader_path,
 		.default_texture_path = ".",
-		.output_override = output,
 		.light_edits = edits,
 		.nlight_edits = nedits,
 		.frame = on_frame,
 		.user = &job,
 	};
+
+	/*
+	 * First read: the whole scene checked (--set names and values included)
+	 * and its outputs planned, nothing rendered or written. Its diagnostics
+	 * are shown only when it fails: the rendering read repeats the warnings.
+	 */
+	char *check_log = NULL;
+	size_t check_len = 0;
+	FILE *check_diag = open_memstream(&check_log, &check_len);
+	if (!check_diag) {
+		fprintf(stderr, "relight render: error: out of memory\n");
+		return CMD_FAILED;
+	}
+	ri.diag = check_diag;
+	ri.check_only = true;
+	job.checking = true;
 	int nerrors = 0;
 	bool ok = reyes_ri_read(path, &ri, &nerrors);
-	if (ok && job.frames == 0) {
+	fclose(check_diag);
+	if (!ok) {
+		fputs(check_log ? check_log : "", stderr);
+		free(check_log);
+		plan_free(&job);
+		return CMD_FAILED;
+	}
+	free(check_log);
+	if (job.nplanned == 0) {
 		fprintf(stderr, "%s: error: the scene has no frame (no WorldBegin ... WorldEnd)\n",
 			path);
-		ok = false;
+		plan_free(&job);
+		return CMD_FAILED;
 	}
+	if (!plan_outputs(&job)) {
+		fprintf(stderr, "relight render: nothing rendered\n");
+		plan_free(&job);
+		return CMD_FAILED;
+	}
+
+	ri.diag = stderr;
+	ri.check_only = false;
+	job.checking = false;
+	ok = reyes_ri_read(path, &ri, &nerrors);
+	plan_free(&job);
 	return ok ? CMD_OK : CMD_FAILED;
 }

@@ -104,20 +104,30 @@ void reyes_image_finish(struct reyes_image *im)
 /* ------------------------------------------------------------------------ */
 /* Library plumbing                                                          */
 
-/* Per-call state reached from the library's callbacks through user_data. */
+/* Per-call state: the write callback gets it as its user_data. */
 struct io {
 	int fd;                 /* writing: the temporary file */
 	int write_errno;        /* first failing pwrite()'s errno */
 	char msg[256];          /* the library's last error message */
 };
 
+/*
+ * The call in progress on this thread, for on_error(). The library calls
+ * its error handler with a write context's lock held, and
+ * exr_get_user_data() takes that lock again (a non-recursive mutex): asking
+ * the context from inside the handler hangs the thread for ever on the
+ * first failed write. The Core API is synchronous, so the handler runs on
+ * the thread that made the call and a thread-local pointer reaches the state.
+ */
+static _Thread_local struct io *current_io;
+
 static void on_error(exr_const_context_t ctx, exr_result_t code, const char *msg)
 {
-	void *ud = NULL;
-	if (!ctx || exr_get_user_data(ctx, &ud) != EXR_ERR_SUCCESS || !ud)
-		return;
-	struct io *io = ud;
-	snprintf(io->msg, sizeof(io->msg), "%s", msg ? msg : exr_get_default_error_message(code));
+	(void)ctx;
+	struct io *io = current_io;
+	if (io)
+		snprintf(io->msg, sizeof(io->msg), "%s",
+			 msg ? msg : exr_get_default_error_message(code));
 }
 
 static int64_t write_fd(exr_const_context_t ctx, void *ud, const void *buf, uint64_t sz,
@@ -495,6 +505,7 @@ bool reyes_exr_write(const char *path, const struct reyes_image *levels, uint32_
 	init.user_data = &io;
 	init.write_fn = write_fd;
 	exr_context_t ctx = NULL;
+	current_io = &io;
 	exr_result_t rv = exr_start_write(&ctx, file.tmp, EXR_WRITE_FILE_DIRECTLY, &init);
 	if (rv == EXR_ERR_SUCCESS)
 		rv = write_all(ctx, levels, nlevels, o, &e);
@@ -503,6 +514,7 @@ bool reyes_exr_write(const char *path, const struct reyes_image *levels, uint32_
 		if (rv == EXR_ERR_SUCCESS)
 			rv = frv;
 	}
+	current_io = NULL;
 	if (rv != EXR_ERR_SUCCESS) {
 		fprintf(out, "%s: error: cannot write: %s\n", path, why(&io, rv));
 		rl_atomic_abort(&file);
@@ -880,11 +892,13 @@ bool reyes_exr_read(const char *path, bool all_levels, struct reyes_exr_file *f,
 	init.flags = EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
 	exr_context_t ctx = NULL;
 	char msg[256] = "";
+	current_io = &io;
 	exr_result_t rv = exr_start_read(&ctx, path, &init);
 	if (rv == EXR_ERR_SUCCESS)
 		rv = read_pixels(ctx, all_levels, f, msg, sizeof(msg));
 	if (ctx)
 		exr_finish(&ctx);
+	current_io = NULL;
 	if (rv != EXR_ERR_SUCCESS) {
 		fprintf(out, "%s: error: cannot read: %s\n", path,
 			msg[0] ? msg : why(&io, rv));

@@ -10,6 +10,7 @@
 
 #include "color.h"
 #include "fileutil.h"
+#include "texture.h"
 
 #include <errno.h>
 #include <inttypes.h>
@@ -229,4 +230,43 @@ void reyes_srgb8_rgba(const float *rgba, size_t npixels, bool with_alpha, uint8_
 			*out++ = reyes_srgb8(p[c] * inv);
 		*out++ = reyes_unorm8(a);
 	}
+}
+
+bool reyes_png_write_image(const char *path, const struct reyes_image *im, FILE *diag)
+{
+	FILE *out = diag ? diag : stderr;
+	uint32_t nch = im->nchannels;
+	if (nch == 0 || nch > 4) {
+		fprintf(out, "%s: error: cannot write: a PNG holds 1 to 4 channels, not %u\n", path,
+			nch);
+		return false;
+	}
+	size_t npix = (size_t)im->width * im->height;
+	uint8_t *px = malloc(npix * nch);
+	if (!px) {
+		fprintf(out, "%s: error: cannot write: out of memory\n", path);
+		return false;
+	}
+	const char *last = im->channel_names ? im->channel_names[nch - 1] : NULL;
+	bool alpha = (nch == 2 || nch == 4) && last && strcmp(last, "A") == 0;
+	bool linear[4];
+	for (uint32_t c = 0; c < nch; c++) {
+		const char *name = im->channel_names ? im->channel_names[c] : "";
+		linear[c] = strcmp(name, "A") == 0 || strcmp(name, "Z") == 0;
+	}
+	for (size_t p = 0; p < npix; p++) {
+		const float *v = im->data + p * nch;
+		uint8_t *o = px + p * nch;
+		uint32_t ncolour = alpha ? nch - 1 : nch;
+		float a = alpha ? v[nch - 1] : 1.0f;
+		for (uint32_t c = 0; c < ncolour; c++) {
+			float x = alpha && a > 0 ? v[c] / a : v[c];
+			o[c] = linear[c] ? reyes_unorm8(x) : reyes_srgb8(x);
+		}
+		if (alpha)
+			o[nch - 1] = reyes_unorm8(a);
+	}
+	bool ok = reyes_png_write(path, px, im->width, im->height, nch, diag);
+	free(px);
+	return ok;
 }

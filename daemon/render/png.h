@@ -27,6 +27,20 @@
 bool reyes_png_write(const char *path, const uint8_t *pixels, uint32_t width, uint32_t height,
 		     uint32_t nchannels, FILE *diag);
 
+struct reyes_image;
+
+/**
+ * Write a renderer image of 1 to 4 float channels as an 8-bit PNG (grey,
+ * grey + alpha, RGB, RGBA by the channel count). A channel named "A" that
+ * comes last in a 2- or 4-channel image is the alpha: the other channels
+ * are divided by it where it is above 0 (the renderer's colour is
+ * premultiplied; PNG's alpha is straight) and it is stored through
+ * reyes_unorm8(). Channels named "A" or "Z" otherwise go through
+ * reyes_unorm8(), every other channel through reyes_srgb8(). Errors as
+ * reyes_png_write().
+ */
+bool reyes_png_write_image(const char *path, const struct reyes_image *im, FILE *diag);
+
 /**
  * The sRGB transfer function (IEC 61966-2-1) of a linear value, as a
  * continuous value in [0, 1]: 12.92 x up to x = 0.0031308, then

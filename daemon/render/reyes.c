@@ -22,6 +22,7 @@
 #include "hider.h"
 #include "texture.h"
 #include "lighthost.h"
+#include "png.h"
 #include "mathlib.h"
 #include "config.h"
 
@@ -1346,7 +1347,8 @@ static bool write_display(struct render *r, const struct reyes_display *d)
 	im.has_matrices = true;
 	memcpy(im.world_to_camera, r->cam.w2c, sizeof(im.world_to_camera));
 	sl_m44_mul(im.world_to_ndc, r->cam.w2c, r->cam.c2ndc);
-	bool ok = reyes_image_write_exr(d->name, &im, !depth && d->half, r->diag);
+	bool ok = d->png && !depth ? reyes_png_write_image(d->name, &im, r->diag)
+				   : reyes_image_write_exr(d->name, &im, !depth && d->half, r->diag);
 	reyes_image_finish(&im);
 	for (uint32_t k = 0; k < nowned; k++)
 		free(owned[k]);

@@ -36,6 +36,7 @@
 #include <float.h>
 #include <math.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
@@ -1164,8 +1165,17 @@ static void req_frame_begin(struct ri *ri, const struct rib_request *r)
 			   reyes_ri_where(ri, b->loc, r->loc));
 	if (ri->world)
 		FAIL(ri, r->loc, "FrameBegin inside a world block");
-	if (reyes_ri_depth_ok(ri, r))
-		reyes_ri_push_block(ri, r, BLK_FRAME);
+	if (!reyes_ri_depth_ok(ri, r))
+		return;
+	reyes_ri_push_block(ri, r, BLK_FRAME);
+	/* the number names the frame's outputs (relight render -o); FrameEnd restores the options */
+	double n = rib_num(r, 0);
+	if (n >= INT32_MIN && n <= INT32_MAX && n == (int32_t)n) {
+		ri->opt.o.numbered = true;
+		ri->opt.o.frame_number = (int32_t)n;
+	} else {
+		reyes_ri_warn(ri, r->loc, "FrameBegin: %g is not a frame number", n);
+	}
 }
 
 static void req_frame_end(struct ri *ri, const struct rib_request *r)
@@ -1712,6 +1722,8 @@ static void req_make_texture(struct ri *ri, const struct rib_request *r)
 		reyes_ri_warn(ri, r->params[i].loc, "MakeTexture: parameter '%s' ignored",
 			      r->params[i].token);
 	forward_reader_diag(ri);
+	if (ri->opts->check_only)
+		return;
 	if (!reyes_make_texture(pic, tex, sw, tw, filter, w[0], w[1], ri->diag))
 		reyes_ri_err(ri, r->loc, "MakeTexture '%s' -> '%s' failed", pic, tex);
 }
@@ -1725,6 +1737,8 @@ static void req_make_shadow(struct ri *ri, const struct rib_request *r)
 		reyes_ri_warn(ri, r->params[i].loc, "MakeShadow: parameter '%s' ignored",
 			      r->params[i].token);
 	forward_reader_diag(ri);
+	if (ri->opts->check_only)
+		return;
 	if (!reyes_make_shadow(pic, tex, ri->diag))
 		reyes_ri_err(ri, r->loc, "MakeShadow '%s' -> '%s' failed", pic, tex);
 }
@@ -1798,12 +1812,14 @@ static void world_end(struct ri *ri, bool render)
 	if (render && !ri->stop && ri->frame_errors == 0 && ri->opts->frame) {
 		struct reyes_scene sc;
 		build_scene(ri, &sc);
+		sc.world = ri->worlds;
 		if (!ri->opts->frame(ri->opts->user, &sc)) {
 			ri->nerrors++;
 			ri->stop = true;
 		}
 	}
 	ri->frame_errors = 0;
+	ri->worlds++;
 	/* Objects defined inside the world end with it. */
 	for (size_t i = ri->outer_objects; i < ri->objects.len; i++)
 		rl_vec_free(ri->objects.data[i].prims);

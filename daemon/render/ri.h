@@ -51,6 +51,12 @@ struct reyes_ri_opts {
 	const struct reyes_light_edit *light_edits;
 	uint32_t nlight_edits;
 	/**
+	 * Read and check only: frames still go to @frame (to plan their
+	 * outputs, say), but MakeTexture and MakeShadow are not run, as their
+	 * input may be a file an earlier frame writes when rendered.
+	 */
+	bool check_only;
+	/**
 	 * Called at each WorldEnd with the finished scene (owned by the builder,
 	 * valid during the call). Return false to stop (an error was reported).
 	 */

@@ -204,6 +204,7 @@ struct ri {
 	int nerrors;              /* the builder's own, plus frames the callback refused */
 	int reader_errors;
 	int frame_errors;         /* in the frame being built */
+	uint32_t worlds;          /* worlds ended so far */
 	bool stop;
 	bool *edit_seen;          /* per opts->light_edits: a LightSource had its handle */
 

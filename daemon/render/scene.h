@@ -32,6 +32,7 @@ struct reyes_display {
 	const char *type;       /* "file", "openexr", "framebuffer", "zfile", "shadow", ... */
 	const char *mode;       /* "rgba", "rgb", "a", "z", "rgbaz", or an output variable (AOV) */
 	bool half;              /* write half floats (default for colour); "float" asked for float */
+	bool png;               /* write an 8-bit sRGB PNG instead of OpenEXR (set by the caller) */
 	const char *file;       /* where it was requested */
 	uint32_t line;
 };
@@ -53,6 +54,8 @@ struct reyes_options {
 	float gain, gamma;              /* Exposure, default 1 1 */
 	struct reyes_display *displays; /* in order; default one "file" rgba display */
 	uint32_t ndisplays;
+	bool numbered;                  /* the world is in a FrameBegin: frame_number is its number */
+	int32_t frame_number;
 	enum reyes_depthfilter depthfilter; /* Hider "hidden" "depthfilter", default min */
 	bool jitter;                    /* Hider "hidden" "jitter", default on */
 	float opacity_threshold;        /* a sample this opaque hides what is behind (0.996) */
@@ -169,6 +172,7 @@ struct reyes_scene {
 	const char *const *space_names;
 	const float (*space_to_world)[16];
 	uint32_t nspaces;
+	uint32_t world;                 /* the world's place in the scene, from 0, rendered or not */
 };
 
 /** The variable named @name of @p, or NULL. */

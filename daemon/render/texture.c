@@ -30,6 +30,7 @@
 #include <float.h>
 #include <math.h>
 #include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -454,6 +455,13 @@ static void load(const struct reyes_texsys *ts, struct tex *t)
 }
 
 /* The cached entry for @name, loading it on first use. NULL only when out of memory. */
+static atomic_uint_fast64_t unread_maps;
+
+uint64_t reyes_tex_unread_maps(void)
+{
+	return (uint64_t)atomic_load(&unread_maps);
+}
+
 static const struct tex *get(struct reyes_texsys *ts, const char *name)
 {
 	if (!ts || !name || !name[0])
@@ -471,6 +479,8 @@ static const struct tex *get(struct reyes_texsys *ts, const char *name)
 		}
 		if (t) {
 			load(ts, t);
+			if (!t->ok)
+				atomic_fetch_add(&unread_maps, 1);
 			t->next = ts->buckets[b];
 			ts->buckets[b] = t;
 		}

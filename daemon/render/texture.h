@@ -84,6 +84,14 @@ void reyes_tex_serve(struct sl_lighthost *lh, struct reyes_texsys *ts);
 bool reyes_tex_info(struct reyes_texsys *ts, const char *name, const char *query, int type,
 		    int arraylen, float *out, const char **sout);
 
+/**
+ * How many maps (textures, environments, shadow maps) the texture systems
+ * of this process could not read, each name counted once per texture
+ * system: lookups in them gave the fill value, so an image shaded with
+ * them is not the scene's (relight preview's exit status says so).
+ */
+uint64_t reyes_tex_unread_maps(void);
+
 /** A shadow map as reyes_tex_shadow() reads it (see reyes_tex_shadow_map). */
 struct reyes_shadow_map_info {
 	uint32_t width, height;

@@ -663,8 +663,7 @@ struct wpart {
 };
 
 struct writer {
-	char *libmsg_ptr;        /* first member: see on_error() */
-	char libmsg[256];
+	char libmsg[256];        /* the library's last error message */
 	const char *path;
 	char *err;
 	size_t errlen;
@@ -677,14 +676,21 @@ struct writer {
 	size_t aside_cap;
 };
 
+/*
+ * Where on_error() puts the library's message: the buffer of the write or
+ * read in progress on this thread. The library calls its error handler with
+ * a write context's lock held, and exr_get_user_data() takes that lock again
+ * (a non-recursive mutex), so asking the context from inside the handler
+ * hangs the thread for ever on the first failed write. The Core API is
+ * synchronous: the handler runs on the thread that made the call.
+ */
+static _Thread_local char *current_libmsg;
+
 static void on_error(exr_const_context_t ctx, exr_result_t code, const char *msg)
 {
-	void *ud = NULL;
-	if (!ctx || exr_get_user_data(ctx, &ud) != EXR_ERR_SUCCESS || !ud)
-		return;
-	/* struct writer and struct reader both start with a pointer to their message buffer. */
-	char *dst = *(char **)ud;
-	snprintf(dst, 256, "%s", msg ? msg : exr_get_default_error_message(code));
+	(void)ctx;
+	if (current_libmsg)
+		snprintf(current_libmsg, 256, "%s", msg ? msg : exr_get_default_error_message(code));
 }
 
 static int64_t write_fd(exr_const_context_t ctx, void *ud, const void *buf, uint64_t sz,
@@ -1088,7 +1094,6 @@ bool shot_write(const char *path, const struct shot_file *f, const struct shot_w
 	}
 	uint32_t nparts = (uint32_t)nparts64;
 	struct writer w = { .path = path, .err = err, .errlen = errlen, .fd = -1 };
-	w.libmsg_ptr = w.libmsg;
 	struct wpart *parts = calloc(nparts, sizeof(*parts));
 	bool ok = false;
 	if (!parts) {
@@ -1129,6 +1134,7 @@ bool shot_write(const char *path, const struct shot_file *f, const struct shot_w
 	init.user_data = &w;
 	init.write_fn = write_fd;
 	exr_context_t ctx = NULL;
+	current_libmsg = w.libmsg;
 	exr_result_t rv = exr_start_write(&ctx, file.tmp, EXR_WRITE_FILE_DIRECTLY, &init);
 	if (rv == EXR_ERR_SUCCESS)
 		rv = write_parts(&w, ctx, f, parts, nparts, header_sum);
@@ -1137,6 +1143,7 @@ bool shot_write(const char *path, const struct shot_file *f, const struct shot_w
 		if (rv == EXR_ERR_SUCCESS)
 			rv = frv;
 	}
+	current_libmsg = NULL;
 	if (rv != EXR_ERR_SUCCESS) {
 		say(err, errlen, "%s: cannot write: %s", path,
 		    w.write_errno ? strerror(w.write_errno)
@@ -1189,8 +1196,7 @@ struct rpart {
 };
 
 struct reader {
-	char *libmsg_ptr;           /* first member: see on_error() */
-	char libmsg[256];
+	char libmsg[256];           /* the library's last error message */
 	const char *name;
 	int fd;
 	const uint8_t *mem;
@@ -2013,7 +2019,6 @@ static struct shot_file *read_source(struct reader *r, bool with_data)
 {
 	if (r->err && r->errlen)
 		r->err[0] = '\0';
-	r->libmsg_ptr = r->libmsg;
 	uint8_t magic[4];
 	if (r->size < 8 || !src_get(r, 0, magic, 4) || memcmp(magic, "\x76\x2f\x31\x01", 4) != 0) {
 		fail(r, "not an OpenEXR file");
@@ -2025,6 +2030,7 @@ static struct shot_file *read_source(struct reader *r, bool with_data)
 	init.read_fn = read_src;
 	init.size_fn = size_src;
 	init.flags = EXR_CONTEXT_FLAG_DISABLE_CHUNK_RECONSTRUCTION;
+	current_libmsg = r->libmsg;
 	exr_result_t rv = exr_start_read(&r->ctx, r->name, &init);
 	if (rv != EXR_ERR_SUCCESS) {
 		if (r->max_end > r->size)
@@ -2034,6 +2040,7 @@ static struct shot_file *read_source(struct reader *r, bool with_data)
 			     r->libmsg[0] ? r->libmsg : exr_get_default_error_message(rv));
 		if (r->ctx)
 			exr_finish(&r->ctx);
+		current_libmsg = NULL;
 		return NULL;
 	}
 	struct rpart *parts = NULL;
@@ -2043,6 +2050,7 @@ static struct shot_file *read_source(struct reader *r, bool with_data)
 		free(parts[i].chunks);
 	free(parts);
 	exr_finish(&r->ctx);
+	current_libmsg = NULL;
 	coder_finish(&r->cod);
 	free(r->buf);
 	r->buf = NULL;

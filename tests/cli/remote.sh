@@ -230,6 +230,10 @@ expect_stderr '^relight remote: set: (range|type): '
 run "unknown shot" "$relight" remote "$url" open nothere
 expect_status 1
 expect_stderr '^relight remote: open: unknown_shot: '
+# One prefix: the server's message is not prefixed with its op a second time.
+expect_stderr "^relight remote: open: unknown_shot: no shot 'nothere'\$"
+run "set without open: one prefix" "$relight" remote "$url" set 3.intensity=1
+expect_stderr '^relight remote: set: state: no shot is open$'
 run "wait without open" "$relight" remote "$url" wait
 expect_status 1
 expect_stderr '^relight remote: wait: no shot is open'

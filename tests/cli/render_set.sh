@@ -147,8 +147,8 @@ bad_edit() {
 	[ ! -e "$dir/bad.exr" ] || fail "an image was written"
 }
 
-# A light that no frame declares is only known at the end of the file, after
-# the frames are rendered: the error, and one line for each such edit.
+# A light that no frame declares: the error, one line for each such edit,
+# found by reading the whole scene before any frame renders (nothing written).
 run "crowd: --set of unknown lights" bash -c \
 	"cd '$work/crowd' && '$relight' render -q -o bad.exr --set 7.intensity=1 --set 3.intensity=2 --set key.from=0,0,0 crowd.rib"
 expect_no_crash
@@ -157,6 +157,8 @@ expect_stderr "^crowd.rib: error: --set 7.intensity: no LightSource with handle 
 expect_stderr "^crowd.rib: error: --set key.from: no LightSource with handle key$"
 checks=$((checks + 1))
 [ "$(wc -l <"$work/stderr")" -eq 2 ] || fail "expected two lines of errors"
+checks=$((checks + 1))
+[ ! -e "$work/crowd/bad.exr" ] || fail "an image was written despite the unknown lights"
 bad_edit crowd crowd.rib 3.foo=1 "^crowd.rib:20: error: --set 3.foo: shader 'spotlight' has no parameter 'foo'$"
 bad_edit crowd crowd.rib 3.intensity=1,2 \
 	"^crowd.rib:20: error: --set 3.intensity: parameter 'intensity' of shader 'spotlight' is a float and takes 1 value, not 2$"

@@ -16,6 +16,7 @@ import json
 import os
 import queue
 import socket
+import ssl
 import struct
 import sys
 import threading
@@ -214,6 +215,18 @@ def tiles_section():
         C.check(False, "a string value refused")
     except (TypeError, ValueError):
         C.check(True, "a string value refused")
+    # A string of digits is not a number, nor a list of its digits: relight.Error.
+    for bad, what in (({"a": "5"}, "'5'"), ({"a": "12"}, "'12'"), ({"a": [1, "2"]}, "[1, '2']"),
+                      ({"a": None}, "None"), ({"a": True}, "True"), ({"a": "x"}, "'x'")):
+        try:
+            got = relight._params(bad, {})
+            C.check(False, "%s where a number is expected raises relight.Error" % what,
+                    "sent as %r" % (got,))
+        except relight.Error as e:
+            C.check(isinstance(e, ValueError), what + ": the error is also a ValueError")
+        except Exception as e:
+            C.check(False, "%s where a number is expected raises relight.Error" % what,
+                    "raised %r" % e)
 
 
 # ---------------------------------------------------------------------------
@@ -577,9 +590,81 @@ def failures_section():
     srv.done.get(timeout=10)
 
 
+def connect_errors_section():
+    """A connection that cannot be made raises relight.Error (also an OSError)."""
+    C.section = "connect errors"
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()       # nobody listens there now
+    for make, what in ((lambda: relight.Client("ws://127.0.0.1:%d/ws" % port, timeout=5),
+                        "Client to a closed port"),
+                       (lambda: relight.WebSocket.connect("ws://127.0.0.1:%d/ws" % port,
+                                                          timeout=5),
+                        "WebSocket.connect to a closed port"),
+                       (lambda: relight.Client("ws://no-such-host.invalid/ws", timeout=5),
+                        "Client to a host that does not resolve"),
+                       (lambda: relight.Client("ws://127.0.0.1:99999/ws", timeout=5),
+                        "Client to port 99999")):
+        try:
+            make()
+            C.check(False, what + " raises relight.Error", "connected")
+        except relight.Error as e:
+            C.check(str(e) != "", what + " raises relight.Error with a message")
+        except Exception as e:
+            C.check(False, what + " raises relight.Error", "raised %r" % e)
+    try:
+        relight.Client("ws://127.0.0.1:%d/ws" % port, timeout=5)
+    except OSError as e:
+        C.check(e.errno is not None, "a refused connection keeps its errno", repr(e))
+    except Exception as e:
+        C.check(False, "a refused connection is also an OSError", repr(e))
+
+    # wss:// to a server that does not speak TLS: relight.Error, also an ssl.SSLError.
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(1)
+
+    def not_tls():
+        conn, _ = srv.accept()
+        conn.sendall(b"HTTP/1.1 400 Bad Request\r\n\r\n" * 8)
+        time.sleep(0.5)
+        conn.close()
+    threading.Thread(target=not_tls, daemon=True).start()
+    try:
+        relight.WebSocket.connect("wss://127.0.0.1:%d/ws" % srv.getsockname()[1], timeout=5)
+        C.check(False, "a failed TLS handshake raises relight.Error", "connected")
+    except relight.Error as e:
+        C.check(isinstance(e, ssl.SSLError) and "TLS" in str(e),
+                "a failed TLS handshake is relight.Error and ssl.SSLError", repr(e))
+    except Exception as e:
+        C.check(False, "a failed TLS handshake raises relight.Error", repr(e))
+    srv.close()
+
+    # A server that accepts and never answers: the request times out with relight.Error.
+    def script(p):
+        accept_only(p)
+        p.request()
+        p.send_json({"op": "hello", "version": 1, "role": "editor"})
+        p.request()
+        time.sleep(1.5)
+    srv = MockServer(script)
+    c = relight.Client(srv.url, timeout=0.5)
+    try:
+        c.stats()
+        C.check(False, "a request without a reply times out")
+    except relight.Error as e:
+        C.check(isinstance(e, TimeoutError), "a reply's timeout is relight.Error and "
+                "TimeoutError", repr(e))
+    except Exception as e:
+        C.check(False, "a reply's timeout raises relight.Error", repr(e))
+    c.disconnect(wait=0)
+    srv.done.get(timeout=10)
+
+
 def main():
     for section in (frames_section, handshake_section, tiles_section, conversation_section,
-                    failures_section):
+                    failures_section, connect_errors_section):
         C.run(section)
     C.finish()
 

@@ -5,6 +5,7 @@
  * filter type 0 undone, and the pixels compared exactly.
  */
 #include "png.h"
+#include "texture.h"
 
 #include "test.h"
 
@@ -371,6 +372,49 @@ static void test_rgba(void)
 	CHECK(memcmp(rgba, want_rgba, 12) == 0);
 }
 
+/* A renderer image written as PNG: alpha last is straight, "A" and "Z" alone are linear. */
+static void test_image(void)
+{
+	char path[512];
+	struct decoded d;
+	/* RGBA, premultiplied: as reyes_srgb8_rgba() with alpha gives it */
+	static const char *const rgba_names[4] = { "R", "G", "B", "A" };
+	float px[12] = { 0.25f, 0.25f, 0.25f, 0.5f, 0.3f, 0.2f, 0.1f, 1.0f, 0, 0, 0, 0 };
+	struct reyes_image im = { .width = 3, .height = 1, .nchannels = 4,
+				  .channel_names = (const char **)rgba_names, .data = px };
+	path_in_dir(path, sizeof(path), "image_rgba.png");
+	CHECK(reyes_png_write_image(path, &im, stderr));
+	uint8_t want[12];
+	reyes_srgb8_rgba(px, 3, true, want);
+	CHECK(decode(path, &d) && d.nch == 4 && d.width == 3 && memcmp(d.pixels, want, 12) == 0);
+	free(d.pixels);
+
+	/* one AOV channel: grey through sRGB; alpha alone: linear */
+	static const char *const y_name[1] = { "Y" }, *const a_name[1] = { "A" };
+	float g[2] = { 0.5f, 0.25f };
+	im = (struct reyes_image){ .width = 2, .height = 1, .nchannels = 1,
+				   .channel_names = (const char **)y_name, .data = g };
+	path_in_dir(path, sizeof(path), "image_y.png");
+	CHECK(reyes_png_write_image(path, &im, stderr));
+	CHECK(decode(path, &d) && d.nch == 1 && d.pixels[0] == reyes_srgb8(0.5f) &&
+	      d.pixels[1] == reyes_srgb8(0.25f));
+	free(d.pixels);
+	im.channel_names = (const char **)a_name;
+	path_in_dir(path, sizeof(path), "image_a.png");
+	CHECK(reyes_png_write_image(path, &im, stderr));
+	CHECK(decode(path, &d) && d.nch == 1 && d.pixels[0] == reyes_unorm8(0.5f) &&
+	      d.pixels[1] == reyes_unorm8(0.25f));
+	free(d.pixels);
+
+	/* five channels do not fit */
+	static const char *const five[5] = { "R", "G", "B", "A", "Z" };
+	float f5[5] = { 0 };
+	im = (struct reyes_image){ .width = 1, .height = 1, .nchannels = 5,
+				   .channel_names = (const char **)five, .data = f5 };
+	path_in_dir(path, sizeof(path), "image_5.png");
+	CHECK(!reyes_png_write_image(path, &im, NULL));
+}
+
 int main(void)
 {
 	if (!mkdtemp(dir)) {
@@ -382,6 +426,7 @@ int main(void)
 	RUN(test_errors);
 	RUN(test_srgb);
 	RUN(test_rgba);
+	RUN(test_image);
 
 	/* Clean up the files written. */
 	DIR *d = opendir(dir);
