@@ -2,8 +2,9 @@
 
 Checks:
   - 100,000 edits of a shot (sets of two lights' parameters, mutes, solos,
-    freezes) leave at most one log entry per light and parameter touched
-    ("log_entries" in stats: at most 12 here) and log_bytes under 16 KB;
+    freezes) leave at most one log entry per parameter set, a mute and a
+    freeze per light and one solo ("log_entries" in stats), and log_bytes
+    under 16 KB;
   - the daemon's resident memory grows by less than 4 MB over those edits
     (the log alone took ~360 bytes an edit, 36 MB for 100,000, before; not
     checked under AddressSanitizer, whose quarantine keeps freed memory);
