@@ -157,7 +157,7 @@ class Daemon:
     other than 0, sanitizer reports in stderr.
     """
 
-    def __init__(self, relightd, shots, extra=(), tokens=None, start_timeout=60):
+    def __init__(self, relightd, shots, extra=(), tokens=None, start_timeout=60, env=None):
         self.tmp = tempfile.mkdtemp(prefix="relightd-", dir=build_dir())
         self.snapshots = os.path.join(self.tmp, "snapshots")
         os.mkdir(self.snapshots)
@@ -175,8 +175,12 @@ class Daemon:
         self.cmd = cmd
         self.stderr_path = os.path.join(self.tmp, "stderr")
         self._stderr = open(self.stderr_path, "wb")
+        full_env = None
+        if env:
+            full_env = dict(os.environ)
+            full_env.update(env)
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=self._stderr,
-                                     cwd=self.tmp)
+                                     cwd=self.tmp, env=full_env)
         self.port = None
         line = self._read_line(start_timeout)
         if line is None:
