@@ -99,7 +99,8 @@ static const struct setting settings[] = {
 	  .help = "Shots resident in GPU memory at once (1 to 4096)." },
 	{ .name = "max-lights", .kind = K_COUNT, FIELD(max_lights), .min = 1, .max = 65536,
 	  .unit = "lights", .arg = "N", .dflt = "1024",
-	  .help = "Lights in one shot, added ones included (1 to 65536)." },
+	  .help = "Lights in one shot, added ones included (1 to 65536); a shot may have had "
+		  "4 x N lights in all, removed ones included." },
 	{ .name = "client-queue", .kind = K_SIZE, FIELD(client_queue), .min = 1, .max = 65536,
 	  .scale = 1u << 20, .unit = "megabytes", .arg = "MB", .dflt = "64",
 	  .help = "Frames queued for one slow client, at most (1 to 65536). Tiles that a "

@@ -26,6 +26,13 @@
 struct cJSON;
 struct gpu_shot;
 
+/*
+ * Lights a shot may have had in its life on the daemon, added and removed
+ * ones included, per --max-lights: a removed light keeps its index in the
+ * runtime and its add and remove in the edit log.
+ */
+#define SRV_LIGHT_SLOTS_PER_LIGHT 4u
+
 struct srv_client {
 	uint64_t id;
 	struct lws *wsi;

@@ -338,6 +338,17 @@ static bool apply_job(struct srv *s, struct srv_shot *sh, const struct srv_job *
 			*code = PROTO_E_LIMIT;
 			return false;
 		}
+		/* A removed light keeps its place in the runtime and in the edit log:
+		 * bound what adding and removing lights for ever would grow. */
+		uint64_t slots = (uint64_t)SRV_LIGHT_SLOTS_PER_LIGHT * s->cfg.max_lights;
+		if (gpu_shot_light_count(g) >= slots) {
+			snprintf(err, errlen, "shot '%s' has had %u lights, added and removed ones "
+				 "included; the most is %u x --max-lights (%llu)", sh->name,
+				 gpu_shot_light_count(g), SRV_LIGHT_SLOTS_PER_LIGHT,
+				 (unsigned long long)slots);
+			*code = PROTO_E_LIMIT;
+			return false;
+		}
 		ok = gpu_shot_add_light(g, j->light, j->shader, NULL, err, errlen) >= 0;
 		if (!ok) {
 			*code = PROTO_E_UNKNOWN_PARAM;   /* a shader neither the shot nor the path has */

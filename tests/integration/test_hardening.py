@@ -28,7 +28,10 @@ Checks (none with a tolerance; times are bounds, given with each):
   - the upgrade is refused on a path other than /ws and without the
     subprotocol relight.v1;
   - with --metrics token, GET /metrics answers 401 without
-    "Authorization: Bearer TOKEN" and 200 with a token of the token file.
+    "Authorization: Bearer TOKEN" and 200 with a token of the token file;
+  - adding and removing a light over and over is bounded: with --max-lights 4
+    on a shot of 3 lights, 4 x 4 - 3 = 13 add/remove cycles go through, the
+    14th add gets a "limit" error, and the shot is still served.
 """
 
 import base64
@@ -452,6 +455,35 @@ def metrics_token():
             m.finish(C)
 
 
+def light_slots():
+    C.section = "light slots"
+    m = None
+    try:
+        m = harness.Daemon(relightd, shots, extra=["--max-lights", "4"], tokens=[EDITOR])
+        c = m.client(token=EDITOR, timeout=WAIT)
+        o = c.open("shadows")
+        first = [l["name"] for l in o["lights"]]
+        C.equal(len(first), 3, "the shot has 3 lights")
+        allowed = 4 * 4 - len(first)
+        refused = None
+        for i in range(allowed + 5):
+            try:
+                c.add_light("cycle", "pointlight")
+            except relight.ServerError as e:
+                refused = (i, e.code)
+                break
+            c.remove_light("cycle")
+        C.equal(refused, (allowed, "limit"),
+                "%d add/remove cycles go through, the next add gets a limit error" % allowed)
+        e = c.set(first[0], {"intensity": 0.5})
+        img = c.wait(e, 0)
+        C.check(img is not None, "the shot is still edited and served after the refusal")
+        c.disconnect()
+    finally:
+        if m:
+            m.finish(C)
+
+
 def main():
     version()
     d = harness.Daemon(relightd, shots, extra=["--max-clients", "4"], tokens=[EDITOR])
@@ -469,6 +501,7 @@ def main():
     finally:
         d.finish(C)
     C.run(metrics_token)
+    C.run(light_slots)
     C.finish()
 
 
