@@ -599,6 +599,9 @@ static void set_params(struct sl_exec *x, const struct reyes_shader *sh,
 	}
 	if (!g)
 		return;
+	/* Varying values are taken per point of the grid being shaded, whose
+	   size must be known first. */
+	sl_exec_set_grid(x, g->nu, g->nv);
 	for (uint32_t i = 0; i < g->nvars; i++) {
 		int k = sl_program_find_param(prog, g->vars[i].name);
 		if (k < 0)

@@ -783,7 +783,9 @@ static void req_color(struct ri *ri, const struct rib_request *r)
 	float c[3];
 	if (!reyes_ri_float_args(ri, r, 0, 3, c))
 		return;
-	memcpy(strcmp(r->name, "Color") == 0 ? ri->gs.a.Cs : ri->gs.a.Os, c, sizeof(c));
+	bool color = strcmp(r->name, "Color") == 0;
+	memcpy(color ? ri->gs.a.Cs : ri->gs.a.Os, c, sizeof(c));
+	ri->gs.a.objset |= color ? OBJ_CS : OBJ_OS;
 	attrs_changed(ri);
 }
 
@@ -795,6 +797,7 @@ static void req_sides(struct ri *ri, const struct rib_request *r)
 	if (n != 1 && n != 2)
 		FAIL(ri, r->loc, "Sides must be 1 or 2, got %g", n);
 	ri->gs.a.sides = (int)n;
+	ri->gs.a.objset |= OBJ_SIDES;
 	attrs_changed(ri);
 }
 
@@ -816,6 +819,7 @@ static void req_orientation(struct ri *ri, const struct rib_request *r)
 		FAIL(ri, r->loc,
 			   "Orientation must be \"outside\", \"inside\", \"lh\" or \"rh\", got '%s'",
 			   o);
+	ri->gs.a.objset |= OBJ_ORIENTATION;
 	attrs_changed(ri);
 }
 
@@ -823,6 +827,7 @@ static void req_reverse_orientation(struct ri *ri, const struct rib_request *r)
 {
 	(void)r;
 	ri->gs.a.inside = !ri->gs.a.inside;
+	ri->gs.a.objset |= OBJ_ORIENTATION;
 	attrs_changed(ri);
 }
 
@@ -834,6 +839,7 @@ static void req_shading_rate(struct ri *ri, const struct rib_request *r)
 	if (!(s > 0))
 		FAIL(ri, r->loc, "ShadingRate must be positive, got %g", s);
 	ri->gs.a.shading_rate = s;
+	ri->gs.a.objset |= OBJ_SHADING_RATE;
 	attrs_changed(ri);
 }
 
@@ -849,6 +855,7 @@ static void req_shading_interpolation(struct ri *ri, const struct rib_request *r
 	else
 		FAIL(ri, r->loc,
 			   "ShadingInterpolation must be \"constant\" or \"smooth\", got '%s'", s);
+	ri->gs.a.objset |= OBJ_INTERPOLATION;
 	attrs_changed(ri);
 }
 
@@ -877,15 +884,19 @@ static void req_attribute(struct ri *ri, const struct rib_request *r)
 		bool num1 = reyes_ri_is_numbers(v) && v->n == 1;
 		if (identifier && strcmp(pname, "name") == 0 && str1) {
 			a->identifier = rl_arena_strdup(reyes_ri_cur_arena(ri), v->strs[0]);
+			a->objset |= OBJ_IDENTIFIER;
 		} else if (dbound && strcmp(pname, "sphere") == 0 && num1) {
 			if (!(v->nums[0] >= 0 && v->nums[0] <= FLT_MAX))
 				FAIL(ri, p->loc, "displacementbound: bad sphere %g", v->nums[0]);
 			a->dbound = (float)v->nums[0];
+			a->objset |= OBJ_DBOUND;
 		} else if (dbound && strcmp(pname, "coordinatesystem") == 0 && str1) {
 			a->dbound_space = rl_arena_strdup(reyes_ri_cur_arena(ri), v->strs[0]);
+			a->objset |= OBJ_DBOUND;
 		} else if (visibility && strcmp(pname, "transmission") == 0 && (num1 || str1)) {
 			/* Numbers 0/1, or the older strings "opaque", "transparent", "Os", "shader". */
 			a->casts_shadows = num1 ? v->nums[0] != 0 : strcmp(v->strs[0], "transparent") != 0;
+			a->objset |= OBJ_VISIBILITY;
 		} else if (visibility && (strcmp(pname, "camera") == 0 || strcmp(pname, "diffuse") == 0 ||
 					  strcmp(pname, "specular") == 0 || strcmp(pname, "photon") == 0)) {
 			/* Everything is seen by the camera; no ray tracing. */
@@ -1062,6 +1073,7 @@ void reyes_ri_push_block(struct ri *ri, const struct rib_request *r, enum blk ki
 		.kind = kind,
 		.loc = reyes_ri_keep_loc(ri, r->loc),
 		.file_depth = (uint32_t)ri->files.len,
+		.pre_lights = ri->pre_lights.len,
 		.gs = ri->gs,
 		.opt = ri->opt,
 	};
@@ -1090,6 +1102,17 @@ const struct block *reyes_ri_find_block(const struct ri *ri, enum blk kind)
 
 static void world_end(struct ri *ri, bool render);
 
+/* The lights declared before WorldBegin end with the frame that declared them. */
+static void drop_pre_lights(struct ri *ri, size_t keep)
+{
+	if (ri->pre_lights.len <= keep)
+		return;
+	ri->pre_lights.len = keep;
+	strmap_free(&ri->pre_light_index);
+	for (size_t i = 0; i < keep; i++)
+		strmap_put(&ri->pre_light_index, ri->pre_lights.data[i].handle, i + 1);
+}
+
 /* Pops the innermost block, restoring what it saved. @ok: it was closed properly. */
 static void pop_block(struct ri *ri, bool ok)
 {
@@ -1098,6 +1121,7 @@ static void pop_block(struct ri *ri, bool ok)
 	case BLK_FRAME:
 		ri->gs = b.gs;
 		ri->opt = b.opt;
+		drop_pre_lights(ri, b.pre_lights);
 		break;
 	case BLK_WORLD:
 		world_end(ri, ok);
@@ -1237,6 +1261,15 @@ static void req_world_begin(struct ri *ri, const struct rib_request *r)
 		sl_m44_mul(s.m, ri->pre_spaces.data[i].m, ri->w2c_inv);
 		rl_vec_push(ri->spaces, s);
 		strmap_put(&ri->space_index, s.name, ri->spaces.len);
+	}
+	/* Lights declared before WorldBegin are the world's first, their shader
+	   space (camera-relative when declared) now relative to world. */
+	for (size_t i = 0; i < ri->pre_lights.len; i++) {
+		struct reyes_light l = ri->pre_lights.data[i];
+		sl_m44_mul(l.shader.shader_to_world, ri->pre_lights.data[i].shader.shader_to_world,
+			   ri->w2c_inv);
+		rl_vec_push(ri->lights, l);
+		strmap_put(&ri->light_index, l.handle, i + 1);
 	}
 	xform_init(&ri->gs.x);
 	ri->gs.bundle = NULL;
@@ -1464,6 +1497,7 @@ static void req_surface(struct ri *ri, const struct rib_request *r)
 		ri->gs.a.surface = sh;
 	else
 		ri->gs.a.displacement = sh;
+	ri->gs.a.objset |= surf ? OBJ_SURFACE : OBJ_DISPLACEMENT;
 	attrs_changed(ri);
 }
 
@@ -1490,7 +1524,7 @@ static void set_light(struct ri *ri, uint32_t index, bool on)
 	uint32_t n = on ? a->nlights + 1 : a->nlights - 1;
 	if (gs->own_lights != a->lights || n > gs->lights_cap) {
 		uint32_t cap = n < 4 ? 8 : 2 * n;
-		uint32_t *l = rl_arena_alloc(ri->world, sizeof(uint32_t) * cap);
+		uint32_t *l = rl_arena_alloc(reyes_ri_cur_arena(ri), sizeof(uint32_t) * cap);
 		if (a->nlights)
 			memcpy(l, a->lights, sizeof(uint32_t) * a->nlights);
 		gs->own_lights = l;
@@ -1541,7 +1575,7 @@ static bool apply_light_edit(struct ri *ri, const struct rib_request *r,
 			     sl_basetype_name(sp->type.base), nc, nc == 1 ? "" : "s", e->nvalues);
 		return false;
 	}
-	float *f = rl_arena_alloc(ri->world, sizeof(float) * nc);
+	float *f = rl_arena_alloc(reyes_ri_cur_arena(ri), sizeof(float) * nc);
 	for (uint32_t c = 0; c < nc; c++) {
 		f[c] = e->values[grey ? 0 : c];
 		if (!isfinite(f[c])) {
@@ -1573,7 +1607,7 @@ static void apply_light_edits(struct ri *ri, const struct rib_request *r, const 
 		if (!vals) {
 			/* the request's list is shared with nothing else yet, but is
 			   const; the edited list is a copy with room to grow */
-			vals = rl_arena_alloc(ri->world,
+			vals = rl_arena_alloc(reyes_ri_cur_arena(ri),
 					      sizeof(*vals) * (sh->nparams + o->nlight_edits));
 			if (sh->nparams)
 				memcpy(vals, sh->params, sizeof(*vals) * sh->nparams);
@@ -1591,13 +1625,23 @@ static void note_light_handle(struct ri *ri, const char *handle)
 			ri->edit_seen[i] = true;
 }
 
+/*
+ * LightSource NAME HANDLE PARAMS. Before WorldBegin (even before the first
+ * FrameBegin) the light's shader space is the camera-relative current
+ * transformation, and the light belongs to every world that follows until
+ * the end of the frame it is declared in; its being on is an attribute, as
+ * inside the world.
+ */
 static void req_light_source(struct ri *ri, const struct rib_request *r)
 {
 	if (ri->objdef >= 0)
 		FAIL(ri, r->loc, "LightSource inside an object definition");
+	bool world = ri->world != NULL;
+	struct rl_arena *a = reyes_ri_cur_arena(ri);
+	size_t count = world ? ri->lights.len : ri->pre_lights.len;
 	/* The handle first: an edit of a light whose shader fails has found its light. */
-	const char *handle = r->nargs > 1 ? reyes_ri_handle_arg(ri, r, 1, ri->world)
-					  : rl_arena_printf(ri->world, "%zu", ri->lights.len + 1);
+	const char *handle = r->nargs > 1 ? reyes_ri_handle_arg(ri, r, 1, a)
+					  : rl_arena_printf(a, "%zu", count + 1);
 	if (!handle)
 		return;
 	note_light_handle(ri, handle);
@@ -1605,24 +1649,30 @@ static void req_light_source(struct ri *ri, const struct rib_request *r)
 	if (!sh)
 		return;
 	apply_light_edits(ri, r, handle, sh);
-	uint32_t index = (uint32_t)ri->lights.len;
+	uint32_t index = (uint32_t)count;
 	struct reyes_light l = {.shader = *sh, .handle = handle, .default_on = true,
 				.index = index};
-	rl_vec_push(ri->lights, l);
-	strmap_put(&ri->light_index, handle, index + 1);
+	if (world) {
+		rl_vec_push(ri->lights, l);
+		strmap_put(&ri->light_index, handle, index + 1);
+	} else {
+		rl_vec_push(ri->pre_lights, l);
+		strmap_put(&ri->pre_light_index, handle, index + 1);
+	}
 	set_light(ri, index, true);
 }
 
 static void req_illuminate(struct ri *ri, const struct rib_request *r)
 {
-	const char *handle = reyes_ri_handle_arg(ri, r, 0, ri->world);
+	bool world = ri->world != NULL;
+	const char *handle = reyes_ri_handle_arg(ri, r, 0, reyes_ri_cur_arena(ri));
 	double on;
 	if (!handle || !reyes_ri_num_arg(ri, r, 1, &on))
 		return;
 	uintptr_t k;
-	if (!strmap_get(&ri->light_index, handle, &k))
+	if (!strmap_get(world ? &ri->light_index : &ri->pre_light_index, handle, &k))
 		FAIL(ri, r->loc, "Illuminate: unknown light '%s'", handle);
-	ri->lights.data[k - 1].default_on = on != 0;
+	(world ? ri->lights.data : ri->pre_lights.data)[k - 1].default_on = on != 0;
 	set_light(ri, (uint32_t)(k - 1), on != 0);
 }
 
@@ -1878,8 +1928,8 @@ static const struct handler handlers[] = {
 	{"Opacity", req_color, 0},
 	{"Surface", req_surface, 0},
 	{"Displacement", req_surface, 0},
-	{"LightSource", req_light_source, F_WORLD},
-	{"Illuminate", req_illuminate, F_WORLD},
+	{"LightSource", req_light_source, 0},
+	{"Illuminate", req_illuminate, 0},
 	{"Sides", req_sides, 0},
 	{"Orientation", req_orientation, 0},
 	{"ReverseOrientation", req_reverse_orientation, 0},
@@ -2025,12 +2075,14 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 	rl_vec_free(ri->blocks);
 	rl_vec_free(ri->files);
 	rl_vec_free(ri->pre_spaces);
+	rl_vec_free(ri->pre_lights);
 	rl_vec_free(ri->lights);
 	rl_vec_free(ri->prims);
 	rl_vec_free(ri->spaces);
 	strmap_free(&ri->decls);
 	strmap_free(&ri->shader_cache);
 	strmap_free(&ri->pre_space_index);
+	strmap_free(&ri->pre_light_index);
 	strmap_free(&ri->outer_object_index);
 	strmap_free(&ri->world_object_index);
 	strmap_free(&ri->light_index);

@@ -108,6 +108,25 @@ struct xform {
 	bool moving;
 };
 
+/*
+ * Which attributes a request set inside the object definition being built
+ * (struct attrstate's objset): those are recorded with the object's
+ * primitives and override the instance's at ObjectInstance.
+ */
+enum {
+	OBJ_CS = 1 << 0,
+	OBJ_OS = 1 << 1,
+	OBJ_SURFACE = 1 << 2,
+	OBJ_DISPLACEMENT = 1 << 3,
+	OBJ_SIDES = 1 << 4,
+	OBJ_ORIENTATION = 1 << 5,
+	OBJ_SHADING_RATE = 1 << 6,
+	OBJ_INTERPOLATION = 1 << 7,
+	OBJ_IDENTIFIER = 1 << 8,
+	OBJ_DBOUND = 1 << 9,
+	OBJ_VISIBILITY = 1 << 10,
+};
+
 /* The attributes of the graphics state (the transformation aside). */
 struct attrstate {
 	float Cs[3], Os[3];
@@ -125,6 +144,7 @@ struct attrstate {
 	bool casts_shadows;
 	float ubasis[16], vbasis[16];
 	uint32_t ustep, vstep;
+	unsigned objset;                /* OBJ_*: set since ObjectBegin */
 };
 
 struct gstate {
@@ -153,6 +173,7 @@ struct block {
 	enum blk kind;
 	struct rib_loc loc;      /* file name interned */
 	uint32_t file_depth;     /* which file (archive nesting) opened it */
+	size_t pre_lights;       /* lights declared before WorldBegin when it opened */
 	struct gstate gs;        /* what to restore */
 	struct optstate opt;     /* BLK_FRAME */
 };
@@ -174,6 +195,9 @@ struct motion {
 
 struct obj_prim {
 	struct reyes_prim *p;     /* attrs NULL: given at each instance */
+	/* The attributes at the primitive, when the definition set some
+	   (a->objset); NULL: the instance's alone. */
+	const struct attrstate *a;
 	float rel[2][16];         /* the primitive's transformation relative to ObjectBegin's */
 	bool identity;
 };
@@ -226,6 +250,14 @@ struct ri {
 	RL_VEC(struct block) blocks;
 	RL_VEC(struct file) files;
 	uint32_t archive_reads;
+
+	/*
+	 * Lights declared before WorldBegin (shader space relative to camera),
+	 * in perm: they are the first lights of every world that follows, until
+	 * the FrameEnd of the frame that declared them.
+	 */
+	RL_VEC(struct reyes_light) pre_lights;
+	struct strmap pre_light_index;    /* handle -> index + 1 */
 
 	/* before WorldBegin: named spaces relative to camera */
 	RL_VEC(struct space) pre_spaces;

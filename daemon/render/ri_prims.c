@@ -434,6 +434,11 @@ static void add_prim(struct ri *ri, struct reyes_prim *p, const struct xform *x)
 {
 	if (ri->objdef >= 0) {
 		struct obj_prim op = {.p = p};
+		if (ri->gs.a.objset) {
+			struct attrstate *a = rl_arena_alloc(reyes_ri_cur_arena(ri), sizeof(*a));
+			*a = ri->gs.a;
+			op.a = a;
+		}
 		for (int k = 0; k < 2; k++)
 			sl_m44_mul(op.rel[k], x->m[k], ri->objdef_inv[k]);
 		op.identity = reyes_ri_is_identity(op.rel[0]) && reyes_ri_is_identity(op.rel[1]);
@@ -966,6 +971,8 @@ void reyes_ri_req_object_begin(struct ri *ri, const struct rib_request *r)
 	if (!sl_m44_inverse(inv[0], ri->gs.x.m[0]) || !sl_m44_inverse(inv[1], ri->gs.x.m[1]))
 		FAIL(ri, r->loc, "ObjectBegin: the current transformation is singular");
 	reyes_ri_push_block(ri, r, BLK_OBJECT);
+	/* From here the attributes a request sets are the object's own. */
+	ri->gs.a.objset = 0;
 	rl_vec_push(ri->objects, (struct object){0});
 	ri->objdef = (int)ri->objects.len - 1;
 	memcpy(ri->objdef_inv, inv, sizeof(inv));
@@ -985,6 +992,36 @@ void reyes_ri_req_object_end(struct ri *ri, const struct rib_request *r)
 	reyes_ri_close_block(ri, r, BLK_OBJECT);
 }
 
+/* Into the instance's attributes @a, those the object's definition set in @def. */
+static void instance_attrs(struct attrstate *a, const struct attrstate *def)
+{
+	unsigned set = def->objset;
+	if (set & OBJ_CS)
+		memcpy(a->Cs, def->Cs, sizeof(a->Cs));
+	if (set & OBJ_OS)
+		memcpy(a->Os, def->Os, sizeof(a->Os));
+	if (set & OBJ_SURFACE)
+		a->surface = def->surface;
+	if (set & OBJ_DISPLACEMENT)
+		a->displacement = def->displacement;
+	if (set & OBJ_SIDES)
+		a->sides = def->sides;
+	if (set & OBJ_ORIENTATION)
+		a->inside = def->inside;
+	if (set & OBJ_SHADING_RATE)
+		a->shading_rate = def->shading_rate;
+	if (set & OBJ_INTERPOLATION)
+		a->smooth = def->smooth;
+	if (set & OBJ_IDENTIFIER)
+		a->identifier = def->identifier;
+	if (set & OBJ_DBOUND) {
+		a->dbound = def->dbound;
+		a->dbound_space = def->dbound_space;
+	}
+	if (set & OBJ_VISIBILITY)
+		a->casts_shadows = def->casts_shadows;
+}
+
 void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 {
 	if (ri->objdef >= 0)
@@ -1001,14 +1038,23 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 	const struct object *o = &ri->objects.data[k - 1];
 	for (size_t i = 0; i < o->prims.len; i++) {
 		const struct obj_prim *op = &o->prims.data[i];
-		if (op->identity) {
-			add_prim(ri, op->p, &ri->gs.x);
+		struct xform x = ri->gs.x;
+		if (!op->identity) {
+			for (int t = 0; t < 2; t++)
+				sl_m44_mul(x.m[t], op->rel[t], ri->gs.x.m[t]);
+			x.moving = memcmp(x.m[0], x.m[1], sizeof(x.m[0])) != 0;
+		}
+		if (!op->a) {
+			add_prim(ri, op->p, op->identity ? &ri->gs.x : &x);
 			continue;
 		}
-		struct xform x;
-		for (int t = 0; t < 2; t++)
-			sl_m44_mul(x.m[t], op->rel[t], ri->gs.x.m[t]);
-		x.moving = memcmp(x.m[0], x.m[1], sizeof(x.m[0])) != 0;
-		add_prim(ri, op->p, &x);
+		/* The attributes the definition set, over the instance's. */
+		struct attrstate saved = ri->gs.a;
+		instance_attrs(&ri->gs.a, op->a);
+		struct reyes_prim q = *op->p;
+		q.attrs = reyes_ri_make_bundle(ri, &x);
+		q.id = (uint32_t)ri->prims.len;
+		rl_vec_push(ri->prims, q);
+		ri->gs.a = saved;
 	}
 }

@@ -505,6 +505,298 @@ static void test_shadow_map(void)
 	CHECK(umbra_nocast > 0.5);
 }
 
+/* Write @text to the file @name in the test folder. */
+static bool write_file(const char *name, const char *text)
+{
+	FILE *f = fopen(tmp_path(name), "w");
+	if (!f)
+		return false;
+	fputs(text, f);
+	return fclose(f) == 0;
+}
+
+/* The bilinear mix of the four corner colours of the square [-1, 1]^2 at (X, Y). */
+static const float corner_rgb[4][3] = {
+	{ 1, 0, 0 },     /* (-1, -1) */
+	{ 0, 1, 0 },     /* ( 1, -1) */
+	{ 0, 0, 1 },     /* ( 1,  1) */
+	{ 1, 1, 1 },     /* (-1,  1) */
+};
+
+static double bilinear_mix(int c, double X, double Y)
+{
+	double u = (X + 1) / 2, v = (Y + 1) / 2;
+	return (1 - u) * (1 - v) * corner_rgb[0][c] + u * (1 - v) * corner_rgb[1][c] +
+	       u * v * corner_rgb[2][c] + (1 - u) * v * corner_rgb[3][c];
+}
+
+/*
+ * Primitive variables bound to a shader parameter declared varying reach the
+ * shader, each class interpolated as RISpec says, on each kind of primitive
+ * that takes them: an orthographic 32x32 view of the square [-1, 1]^2 whose
+ * surface shows the parameter as it is. Varying and vertex values on a
+ * Polygon, varying on a bilinear Patch (bilinear over its corners),
+ * facevarying on PointsPolygons (per face corner), and vertex values on a
+ * bicubic Bezier patch (interpolated as the position: the control points and
+ * colours lie on the same bilinear map, which the Bezier basis reproduces).
+ * The facevarying case has two faces sharing an edge, the right one given
+ * the complement of the mix at its corners: a value per face corner, not
+ * per vertex.
+ * Each pixel (box filter, one pixel wide) averages a bilinear function, which
+ * is its value at the pixel's centre: within 1% of the colour range, the
+ * corners' colours and the centre's mix (0.5 0.5 0.5) included.
+ */
+static void test_varying_primvars(void)
+{
+	CHECK(write_file("showvc.sl",
+			 "surface showvc(varying color vc = 0) { Oi = 1; Ci = vc; }\n"));
+	char bez_p[1024] = "", bez_c[1024] = "";
+	size_t lp = 0, lc = 0;
+	for (int j = 0; j < 4; j++)
+		for (int i = 0; i < 4; i++) {
+			double X = -1 + 2 * i / 3.0, Y = -1 + 2 * j / 3.0;
+			lp += (size_t)snprintf(bez_p + lp, sizeof(bez_p) - lp, " %.9g %.9g 0", X, Y);
+			lc += (size_t)snprintf(bez_c + lc, sizeof(bez_c) - lc, " %.9g %.9g %.9g",
+					       bilinear_mix(0, X, Y), bilinear_mix(1, X, Y),
+					       bilinear_mix(2, X, Y));
+		}
+	/* Two faces sharing the edge X = 0: the left one takes the mix, the
+	   right one its complement, so that the shared vertices carry a value
+	   per face. */
+	static const double fv_xy[8][2] = { { -1, -1 }, { 0, -1 }, { 0, 1 }, { -1, 1 },
+					    { 0, -1 }, { 1, -1 }, { 1, 1 }, { 0, 1 } };
+	char fv_c[1024] = "";
+	size_t lf = 0;
+	for (int k = 0; k < 8; k++)
+		for (int c = 0; c < 3; c++) {
+			double m = bilinear_mix(c, fv_xy[k][0], fv_xy[k][1]);
+			lf += (size_t)snprintf(fv_c + lf, sizeof(fv_c) - lf, " %.9g", k < 4 ? m : 1 - m);
+		}
+	char facevarying[1400];
+	snprintf(facevarying, sizeof(facevarying),
+		 "PointsPolygons [4 4] [0 1 4 5  1 2 3 4]"
+		 " \"P\" [-1 -1 0  0 -1 0  1 -1 0  1 1 0  0 1 0  -1 1 0]"
+		 " \"facevarying color vc\" [%s]", fv_c);
+	char bezier[2400];
+	snprintf(bezier, sizeof(bezier),
+		 "Patch \"bicubic\" \"P\" [%s] \"vertex color vc\" [%s]", bez_p, bez_c);
+	const struct {
+		const char *what, *prim;
+		bool complement;    /* right of X = 0 the complement of the mix */
+	} cases[] = {
+		{ "Polygon varying",
+		  "Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]"
+		  " \"varying color vc\" [1 0 0  0 1 0  0 0 1  1 1 1]" },
+		{ "Polygon vertex",
+		  "Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]"
+		  " \"vertex color vc\" [1 0 0  0 1 0  0 0 1  1 1 1]" },
+		{ "bilinear Patch varying",
+		  "Patch \"bilinear\" \"P\" [-1 -1 0  1 -1 0  -1 1 0  1 1 0]"
+		  " \"varying color vc\" [1 0 0  0 1 0  1 1 1  0 0 1]" },
+		{ "PointsPolygons varying",
+		  "PointsPolygons [4] [3 0 1 2] \"P\" [1 -1 0  1 1 0  -1 1 0  -1 -1 0]"
+		  " \"varying color vc\" [0 1 0  0 0 1  1 1 1  1 0 0]" },
+		{ "PointsPolygons facevarying", facevarying, true },
+		{ "bicubic Patch vertex", bezier },
+	};
+	for (size_t k = 0; k < sizeof(cases) / sizeof(cases[0]); k++) {
+		char rib[4096];
+		snprintf(rib, sizeof(rib),
+			 "Option \"searchpath\" \"shader\" \"%s:@\"\n"
+			 "Format 32 32 1\n"
+			 "PixelSamples 4 4\n"
+			 "PixelFilter \"box\" 1 1\n"
+			 "Projection \"orthographic\"\n"
+			 "Display \"varying.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+			 "WorldBegin\n"
+			 "  Translate 0 0 5\n"
+			 "  ShadingRate 0.25\n"
+			 "  ShadingInterpolation \"smooth\"\n"
+			 "  Surface \"showvc\"\n"
+			 "  %s\n"
+			 "WorldEnd\n", tmpdir, cases[k].prim);
+		struct reyes_image im = { 0 };
+		CHECK(render(rib, "varying.exr", &im));
+		if (!im.data)
+			continue;
+		int ch[3] = { channel(&im, "R"), channel(&im, "G"), channel(&im, "B") };
+		CHECK(ch[0] >= 0 && ch[1] >= 0 && ch[2] >= 0);
+		if (ch[0] < 0 || ch[1] < 0 || ch[2] < 0) {
+			reyes_image_finish(&im);
+			continue;
+		}
+		double worst = 0;
+		for (uint32_t y = 0; y < im.height; y++)
+			for (uint32_t x = 0; x < im.width; x++) {
+				double X = -1 + 2 * (x + 0.5) / im.width;
+				double Y = 1 - 2 * (y + 0.5) / im.height;
+				bool complement = cases[k].complement && X > 0;
+				for (int c = 0; c < 3; c++) {
+					double m = bilinear_mix(c, X, Y);
+					worst = fmax(worst, fabs(px(&im, ch[c], x, y) -
+								 (complement ? 1 - m : m)));
+				}
+			}
+		/* the corner pixels are their corners' colours within a pixel's slope */
+		printf("%s: worst error %.4f (tolerance 0.01); corner (-1,-1) %.3f %.3f %.3f, "
+		       "centre %.3f %.3f %.3f\n", cases[k].what, worst,
+		       px(&im, ch[0], 0, im.height - 1), px(&im, ch[1], 0, im.height - 1),
+		       px(&im, ch[2], 0, im.height - 1),
+		       0.25 * (px(&im, ch[0], 15, 15) + px(&im, ch[0], 16, 15) +
+			       px(&im, ch[0], 15, 16) + px(&im, ch[0], 16, 16)),
+		       0.25 * (px(&im, ch[1], 15, 15) + px(&im, ch[1], 16, 15) +
+			       px(&im, ch[1], 15, 16) + px(&im, ch[1], 16, 16)),
+		       0.25 * (px(&im, ch[2], 15, 15) + px(&im, ch[2], 16, 15) +
+			       px(&im, ch[2], 15, 16) + px(&im, ch[2], 16, 16)));
+		CHECK(worst <= 0.01);
+		reyes_image_finish(&im);
+	}
+}
+
+/* Every pixel of channel @name of @im is @want within @tol; the worst error is printed. */
+static void check_flat(const struct reyes_image *im, const char *what, const char *name,
+		       double want, double tol)
+{
+	int c = channel(im, name);
+	CHECK(c >= 0);
+	if (c < 0)
+		return;
+	double worst = 0;
+	for (uint32_t y = 0; y < im->height; y++)
+		for (uint32_t x = 0; x < im->width; x++)
+			worst = fmax(worst, fabs(px(im, c, x, y) - want));
+	printf("%s: %s %.5f expected, worst error %.2g (tolerance %.2g)\n", what, name, want,
+	       worst, tol);
+	CHECK(worst <= tol);
+}
+
+/*
+ * Lights declared before WorldBegin, and before the first FrameBegin, as the
+ * RenderMan Companion's scenes do: their shader space is camera space (the
+ * camera transformation after them does not turn them), and they light every
+ * frame that follows; one declared inside a frame ends with it; Illuminate
+ * before WorldBegin switches one off for its frame. A matte (Kd 1, Ka 0)
+ * plane facing the camera, lit by a distant light of intensity 2 shining
+ * along camera (0, -1, 1): Ci = 2 cos 45 = 1.41421; frame 1 adds a light of
+ * intensity 1 straight ahead (2.41421); in frame 3 light 1 is off (0).
+ * Within 0.1% (a flat plane, a constant value: only float rounding).
+ */
+static void test_lights_before_world(void)
+{
+	const char *rib =
+		"Format 16 16 1\n"
+		"PixelSamples 2 2\n"
+		"PixelFilter \"box\" 1 1\n"
+		"Projection \"orthographic\"\n"
+		"LightSource \"distantlight\" 1 \"intensity\" 2 \"to\" [0 -1 1]\n"
+		"FrameBegin 1\n"
+		"  Display \"pre1.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+		"  LightSource \"distantlight\" 2 \"intensity\" 1\n"
+		"  Rotate 30 0 1 0\n"
+		"  WorldBegin\n"
+		"    Surface \"matte\" \"Ka\" 0 \"Kd\" 1\n"
+		"    CoordSysTransform \"camera\"\n"
+		"    Polygon \"P\" [-3 -3 5  3 -3 5  3 3 5  -3 3 5]\n"
+		"  WorldEnd\n"
+		"FrameEnd\n"
+		"FrameBegin 2\n"
+		"  Display \"pre2.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+		"  Rotate 30 0 1 0\n"
+		"  WorldBegin\n"
+		"    Surface \"matte\" \"Ka\" 0 \"Kd\" 1\n"
+		"    CoordSysTransform \"camera\"\n"
+		"    Polygon \"P\" [-3 -3 5  3 -3 5  3 3 5  -3 3 5]\n"
+		"  WorldEnd\n"
+		"FrameEnd\n"
+		"FrameBegin 3\n"
+		"  Display \"pre3.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+		"  Illuminate 1 0\n"
+		"  WorldBegin\n"
+		"    Surface \"matte\" \"Ka\" 0 \"Kd\" 1\n"
+		"    Polygon \"P\" [-3 -3 5  3 -3 5  3 3 5  -3 3 5]\n"
+		"  WorldEnd\n"
+		"FrameEnd\n";
+	struct reyes_image im = { 0 };
+	CHECK(render(rib, "pre1.exr", &im));
+	if (im.data) {
+		check_flat(&im, "light before FrameBegin and one in frame 1", "R",
+			   2 * sqrt(0.5) + 1, 1e-3 * (2 * sqrt(0.5) + 1));
+		check_flat(&im, "frame 1 coverage", "A", 1, 1e-6);
+		reyes_image_finish(&im);
+	}
+	CHECK(reyes_image_read_exr(tmp_path("pre2.exr"), &im, NULL));
+	if (im.data) {
+		check_flat(&im, "light before FrameBegin, frame 2", "R", 2 * sqrt(0.5),
+			   1e-3 * 2 * sqrt(0.5));
+		reyes_image_finish(&im);
+	}
+	CHECK(reyes_image_read_exr(tmp_path("pre3.exr"), &im, NULL));
+	if (im.data) {
+		check_flat(&im, "Illuminate 1 0 before WorldBegin, frame 3", "R", 0, 1e-6);
+		check_flat(&im, "frame 3 coverage", "A", 1, 1e-6);
+		reyes_image_finish(&im);
+	}
+}
+
+/*
+ * Attributes set inside ObjectBegin are the object's: an object whose
+ * definition sets Color red, Opacity 0.5 and the "constant" surface is red
+ * and half transparent wherever it is instanced, whatever the instance's
+ * colour; an object whose definition sets none takes the instance's (blue,
+ * opaque, "constant"). Left half of the image the first, right half the
+ * second; exact within float rounding (constant colours, flat coverage).
+ */
+static void test_object_attributes(void)
+{
+	const char *rib =
+		"Format 16 8 1\n"
+		"PixelSamples 2 2\n"
+		"PixelFilter \"box\" 1 1\n"
+		"Projection \"orthographic\"\n"
+		"ScreenWindow -2 2 -1 1\n"
+		"Display \"objects.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+		"ObjectBegin \"own\"\n"
+		"  Color [1 0 0]\n"
+		"  Opacity [0.5 0.5 0.5]\n"
+		"  Surface \"constant\"\n"
+		"  Polygon \"P\" [-2 -1 0  0 -1 0  0 1 0  -2 1 0]\n"
+		"ObjectEnd\n"
+		"WorldBegin\n"
+		"  Translate 0 0 5\n"
+		"  ObjectBegin \"plain\"\n"
+		"    Polygon \"P\" [0 -1 0  2 -1 0  2 1 0  0 1 0]\n"
+		"  ObjectEnd\n"
+		"  Surface \"constant\"\n"
+		"  Color [0 0 1]\n"
+		"  ObjectInstance \"own\"\n"
+		"  ObjectInstance \"plain\"\n"
+		"WorldEnd\n";
+	struct reyes_image im = { 0 };
+	CHECK(render(rib, "objects.exr", &im));
+	if (!im.data)
+		return;
+	int ch[4] = { channel(&im, "R"), channel(&im, "G"), channel(&im, "B"), channel(&im, "A") };
+	CHECK(ch[0] >= 0 && ch[1] >= 0 && ch[2] >= 0 && ch[3] >= 0);
+	if (ch[0] < 0 || ch[1] < 0 || ch[2] < 0 || ch[3] < 0) {
+		reyes_image_finish(&im);
+		return;
+	}
+	/* premultiplied: red 0.5 at alpha 0.5; blue 1 at alpha 1 */
+	const float want[2][4] = { { 0.5f, 0, 0, 0.5f }, { 0, 0, 1, 1 } };
+	double worst = 0;
+	for (uint32_t y = 0; y < im.height; y++)
+		for (uint32_t x = 0; x < im.width; x++)
+			for (int c = 0; c < 4; c++)
+				worst = fmax(worst, fabs(px(&im, ch[c], x, y) -
+							 want[x >= im.width / 2][c]));
+	printf("objects: left %.3f %.3f %.3f %.3f, right %.3f %.3f %.3f %.3f, worst error %.2g "
+	       "(tolerance 1e-5)\n", px(&im, ch[0], 0, 0), px(&im, ch[1], 0, 0),
+	       px(&im, ch[2], 0, 0), px(&im, ch[3], 0, 0), px(&im, ch[0], 15, 0),
+	       px(&im, ch[1], 15, 0), px(&im, ch[2], 15, 0), px(&im, ch[3], 15, 0), worst);
+	CHECK(worst <= 1e-5);
+	reyes_image_finish(&im);
+}
+
 int main(void)
 {
 	snprintf(tmpdir, sizeof(tmpdir), "/tmp/relight-render-XXXXXX");
@@ -519,6 +811,9 @@ int main(void)
 	RUN(test_mirror_one_sided);
 	RUN(test_texture_lookup);
 	RUN(test_shadow_map);
+	RUN(test_varying_primvars);
+	RUN(test_lights_before_world);
+	RUN(test_object_attributes);
 	if (getenv("RELIGHT_KEEP_TMP")) return test_finish();
 	char cmd[600];
 	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", tmpdir);
