@@ -609,10 +609,19 @@ static void set_params(struct sl_exec *x, const struct reyes_shader *sh,
 		const struct sl_param *p = &prog->params[k];
 		int nc = sl_type_ncomp(g->vars[i].type) *
 			 (int)(g->vars[i].arraylen ? g->vars[i].arraylen : 1);
-		if (p->type.detail == SL_DETAIL_VARYING)
+		if (p->type.detail == SL_DETAIL_VARYING) {
 			sl_exec_set_param(x, p->name, g->vars[i].data, (uint32_t)nc * g->n);
-		else
-			sl_exec_set_param(x, p->name, g->vars[i].data, (uint32_t)nc);
+			continue;
+		}
+		/* A uniform parameter takes the first point's value; the grid's
+		   values are planar, a plane of n per component. */
+		float *first = malloc(sizeof(float) * (size_t)nc);
+		if (!first)
+			continue;
+		for (int c = 0; c < nc; c++)
+			first[c] = g->vars[i].data[(size_t)c * g->n];
+		sl_exec_set_param(x, p->name, first, (uint32_t)nc);
+		free(first);
 	}
 }
 

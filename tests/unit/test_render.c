@@ -515,6 +515,23 @@ static bool write_file(const char *name, const char *text)
 	return fclose(f) == 0;
 }
 
+/* Every pixel of channel @name of @im is @want within @tol; the worst error is printed. */
+static void check_flat(const struct reyes_image *im, const char *what, const char *name,
+		       double want, double tol)
+{
+	int c = channel(im, name);
+	CHECK(c >= 0);
+	if (c < 0)
+		return;
+	double worst = 0;
+	for (uint32_t y = 0; y < im->height; y++)
+		for (uint32_t x = 0; x < im->width; x++)
+			worst = fmax(worst, fabs(px(im, c, x, y) - want));
+	printf("%s: %s %.5f expected, worst error %.2g (tolerance %.2g)\n", what, name, want,
+	       worst, tol);
+	CHECK(worst <= tol);
+}
+
 /* The bilinear mix of the four corner colours of the square [-1, 1]^2 at (X, Y). */
 static const float corner_rgb[4][3] = {
 	{ 1, 0, 0 },     /* (-1, -1) */
@@ -651,23 +668,37 @@ static void test_varying_primvars(void)
 		CHECK(worst <= 0.01);
 		reyes_image_finish(&im);
 	}
-}
 
-/* Every pixel of channel @name of @im is @want within @tol; the worst error is printed. */
-static void check_flat(const struct reyes_image *im, const char *what, const char *name,
-		       double want, double tol)
-{
-	int c = channel(im, name);
-	CHECK(c >= 0);
-	if (c < 0)
-		return;
-	double worst = 0;
-	for (uint32_t y = 0; y < im->height; y++)
-		for (uint32_t x = 0; x < im->width; x++)
-			worst = fmax(worst, fabs(px(im, c, x, y) - want));
-	printf("%s: %s %.5f expected, worst error %.2g (tolerance %.2g)\n", what, name, want,
-	       worst, tol);
-	CHECK(worst <= tol);
+	/* A uniform parameter takes the variable's value, every component of it. */
+	CHECK(write_file("showuc.sl",
+			 "surface showuc(uniform color uc = 0) { Oi = 1; Ci = uc; }\n"));
+	static const char *const uniform_prims[] = {
+		"Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] \"uniform color uc\" [0.2 0.4 0.6]",
+		"Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] \"constant color uc\" [0.2 0.4 0.6]",
+	};
+	for (size_t k = 0; k < 2; k++) {
+		char rib[2048];
+		snprintf(rib, sizeof(rib),
+			 "Option \"searchpath\" \"shader\" \"%s:@\"\n"
+			 "Format 8 8 1\n"
+			 "PixelFilter \"box\" 1 1\n"
+			 "Projection \"orthographic\"\n"
+			 "Display \"uniform.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+			 "WorldBegin\n"
+			 "  Translate 0 0 5\n"
+			 "  Surface \"showuc\"\n"
+			 "  %s\n"
+			 "WorldEnd\n", tmpdir, uniform_prims[k]);
+		struct reyes_image im = { 0 };
+		CHECK(render(rib, "uniform.exr", &im));
+		if (!im.data)
+			continue;
+		check_flat(&im, k ? "constant color on a uniform parameter"
+				  : "uniform color on a uniform parameter", "R", 0.2, 1e-6);
+		check_flat(&im, "... green", "G", 0.4, 1e-6);
+		check_flat(&im, "... blue", "B", 0.6, 1e-6);
+		reyes_image_finish(&im);
+	}
 }
 
 /*
