@@ -433,16 +433,25 @@ static bool geometry_ok(struct ri *ri, const struct rib_request *r)
 static void add_prim(struct ri *ri, struct reyes_prim *p, const struct xform *x)
 {
 	if (ri->objdef >= 0) {
+		struct object *o = &ri->objects.data[ri->objdef];
 		struct obj_prim op = {.p = p};
 		if (ri->gs.a.objset) {
-			struct attrstate *a = rl_arena_alloc(reyes_ri_cur_arena(ri), sizeof(*a));
-			*a = ri->gs.a;
-			op.a = a;
+			/* primitives under the same attributes share one record */
+			const struct obj_prim *last = o->prims.len ? &o->prims.data[o->prims.len - 1]
+								   : NULL;
+			if (last && last->a && memcmp(last->a, &ri->gs.a, sizeof(ri->gs.a)) == 0) {
+				op.a = last->a;
+			} else {
+				struct attrstate *a = rl_arena_alloc(reyes_ri_cur_arena(ri),
+								     sizeof(*a));
+				*a = ri->gs.a;
+				op.a = a;
+			}
 		}
 		for (int k = 0; k < 2; k++)
 			sl_m44_mul(op.rel[k], x->m[k], ri->objdef_inv[k]);
 		op.identity = reyes_ri_is_identity(op.rel[0]) && reyes_ri_is_identity(op.rel[1]);
-		rl_vec_push(ri->objects.data[ri->objdef].prims, op);
+		rl_vec_push(o->prims, op);
 		return;
 	}
 	struct reyes_prim q = *p;
@@ -1036,6 +1045,9 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 	    !strmap_get(&ri->outer_object_index, handle, &k))
 		FAIL(ri, r->loc, "ObjectInstance: unknown object '%s'", handle);
 	const struct object *o = &ri->objects.data[k - 1];
+	/* one bundle for a run of primitives under the same recorded attributes */
+	const struct attrstate *bundle_a = NULL;
+	const struct reyes_attrs *bundle = NULL;
 	for (size_t i = 0; i < o->prims.len; i++) {
 		const struct obj_prim *op = &o->prims.data[i];
 		struct xform x = ri->gs.x;
@@ -1048,13 +1060,19 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 			add_prim(ri, op->p, op->identity ? &ri->gs.x : &x);
 			continue;
 		}
-		/* The attributes the definition set, over the instance's. */
-		struct attrstate saved = ri->gs.a;
-		instance_attrs(&ri->gs.a, op->a);
 		struct reyes_prim q = *op->p;
-		q.attrs = reyes_ri_make_bundle(ri, &x);
+		if (op->identity && op->a == bundle_a) {
+			q.attrs = bundle;
+		} else {
+			/* The attributes the definition set, over the instance's. */
+			struct attrstate saved = ri->gs.a;
+			instance_attrs(&ri->gs.a, op->a);
+			q.attrs = reyes_ri_make_bundle(ri, &x);
+			ri->gs.a = saved;
+			bundle_a = op->identity ? op->a : NULL;
+			bundle = q.attrs;
+		}
 		q.id = (uint32_t)ri->prims.len;
 		rl_vec_push(ri->prims, q);
-		ri->gs.a = saved;
 	}
 }
