@@ -829,6 +829,123 @@ static void test_objects(void)
 	CHECK_DIAG(fmt("%s:2: error: ObjectInstance: unknown object '7'", rib_path));
 }
 
+/* Frame 1: the light before FrameBegin, the frame's own, and one in the world. */
+static void check_pre_lights1(const struct reyes_scene *sc)
+{
+	CHECK(sc->nlights == 3 && sc->nprims == 1);
+	if (sc->nlights != 3 || sc->nprims != 1)
+		return;
+	CHECK_STR(sc->lights[0].handle, "outer");
+	CHECK_STR(sc->lights[1].handle, "2");
+	CHECK_STR(sc->lights[2].handle, "3");
+	for (uint32_t i = 0; i < 3; i++)
+		CHECK(sc->lights[i].index == i);
+	/* declared before the camera's Translate 0 0 5: shader space is camera
+	   space, 5 units behind the world's origin seen from the world */
+	CHECK_XFORM(sc->lights[0].shader.shader_to_world, 0, 0, 0, 0, 0, -5);
+	/* declared after it: the world's origin */
+	CHECK_XFORM(sc->lights[1].shader.shader_to_world, 0, 0, 0, 0, 0, 0);
+	/* outer was switched off before WorldBegin, 2 and 3 are on */
+	const struct reyes_attrs *a = sc->prims[0].attrs;
+	CHECK(a->nlights == 2 && a->lights[0] == 1 && a->lights[1] == 2);
+	CHECK(!sc->lights[0].default_on);
+}
+
+/* Frame 2: the light before FrameBegin alone, on again (the frame restored it). */
+static void check_pre_lights2(const struct reyes_scene *sc)
+{
+	CHECK(sc->nlights == 1 && sc->nprims == 1);
+	if (sc->nlights != 1 || sc->nprims != 1)
+		return;
+	CHECK_STR(sc->lights[0].handle, "outer");
+	const struct reyes_attrs *a = sc->prims[0].attrs;
+	CHECK(a->nlights == 1 && a->lights[0] == 0);
+}
+
+static void check_pre_lights(const struct reyes_scene *sc)
+{
+	if (frames == 1)
+		check_pre_lights1(sc);
+	else
+		check_pre_lights2(sc);
+}
+
+/*
+ * LightSource and Illuminate before WorldBegin and before FrameBegin: the
+ * light belongs to the worlds that follow until its frame ends, in the
+ * space current at the request (camera-relative), on or off as an
+ * attribute.
+ */
+static void test_lights_before_world(void)
+{
+	CHECK(run("LightSource \"pointlight\" \"outer\"\n"
+		  "FrameBegin 1\n"
+		  " Translate 0 0 5\n"
+		  " LightSource \"distantlight\" 2\n"
+		  " Illuminate \"outer\" 0\n"
+		  " WorldBegin\n"
+		  "  LightSource \"pointlight\" 3\n"
+		  "  Sphere 1 -1 1 360\n"
+		  " WorldEnd\n"
+		  "FrameEnd\n"
+		  "FrameBegin 2\n"
+		  " WorldBegin\n"
+		  "  Sphere 1 -1 1 360\n"
+		  " WorldEnd\n"
+		  "FrameEnd\n",
+		  check_pre_lights));
+	CHECK(frames == 2);
+	CHECK_NO_DIAG();
+
+	/* the frame's own light ends with it */
+	CHECK(!run("FrameBegin 1\nLightSource \"pointlight\" 2\nWorldBegin\nWorldEnd\nFrameEnd\n"
+		   "FrameBegin 2\nIlluminate 2 1\nWorldBegin\nWorldEnd\nFrameEnd\n", NULL));
+	CHECK_DIAG(fmt("%s:7: error: Illuminate: unknown light '2'", rib_path));
+}
+
+/* The object's own Color and Surface; the instance's Opacity and Sides. */
+static void check_object_attrs(const struct reyes_scene *sc)
+{
+	CHECK(sc->nprims == 3);
+	if (sc->nprims != 3)
+		return;
+	for (uint32_t i = 1; i < 3; i++) {
+		const struct reyes_attrs *a = sc->prims[i].attrs;
+		CHECK(a->Cs[0] == 1 && a->Cs[1] == 0 && a->Cs[2] == 0);
+		CHECK(a->Os[0] == 0.5f && a->sides == 1);
+		CHECK(a->surface && strcmp(a->surface->name, "constant") == 0);
+	}
+	/* the primitives under the same recorded attributes share a bundle */
+	CHECK(sc->prims[1].attrs == sc->prims[2].attrs);
+	/* declared before the definition's Color: the instance's */
+	const struct reyes_attrs *b = sc->prims[0].attrs;
+	CHECK(b->Cs[0] == 0 && b->Cs[1] == 0 && b->Cs[2] == 1);
+	CHECK(b->surface && strcmp(b->surface->name, "matte") == 0);
+	CHECK(b->Os[0] == 0.5f && b->sides == 1);
+}
+
+/* Attributes set inside ObjectBegin are recorded with the object's primitives. */
+static void test_object_attributes(void)
+{
+	CHECK(run("ObjectBegin 1\n"
+		  " Disk 0 1 360\n"
+		  " Color [1 0 0]\n"
+		  " Surface \"constant\"\n"
+		  " Sphere 1 -1 1 360\n"
+		  " Disk 0 2 360\n"
+		  "ObjectEnd\n"
+		  "WorldBegin\n"
+		  " Color [0 0 1]\n"
+		  " Opacity [0.5 0.5 0.5]\n"
+		  " Sides 1\n"
+		  " Surface \"matte\"\n"
+		  " ObjectInstance 1\n"
+		  "WorldEnd\n",
+		  check_object_attrs));
+	CHECK(frames == 1);
+	CHECK_NO_DIAG();
+}
+
 static void check_motion(const struct reyes_scene *sc)
 {
 	CHECK(sc->nprims == 3);
@@ -1080,6 +1197,8 @@ int main(void)
 	RUN(test_primvars);
 	RUN(test_patches);
 	RUN(test_objects);
+	RUN(test_lights_before_world);
+	RUN(test_object_attributes);
 	RUN(test_motion);
 	RUN(test_archives);
 	RUN(test_errors);
