@@ -8,7 +8,8 @@
  *
  * State, from the longest-lived down:
  *  - the read: declarations, the compiled shaders (one compilation per file
- *    and read), objects defined outside a world, in the `perm` arena;
+ *    and read), objects defined outside a world, lights declared before
+ *    WorldBegin (until the end of their frame), in the `perm` arena;
  *  - options, saved and restored by FrameBegin/FrameEnd;
  *  - the graphics state (attributes and the current transformation) with
  *    its stack of blocks; a block records what it must restore;
