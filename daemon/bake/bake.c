@@ -1371,13 +1371,19 @@ bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opt
 
 	/* The reader puts the standard library after any path it is given. */
 	const char *shader_path = opts->shader_path;
+	char env_path[8192];
 	if (!shader_path) {
 		const char *env = getenv("RELIGHT_SHADER_PATH");
-		shader_path = env && *env ? env : NULL;
+		const char *rman = getenv("RMAN_SHADERPATH");
+		env = env ? env : "";
+		rman = rman ? rman : "";
+		snprintf(env_path, sizeof(env_path), "%s%s%s", env, *env && *rman ? ":" : "", rman);
+		shader_path = *env_path ? env_path : NULL;
 	}
 	struct reyes_ri_opts ri = {
 		.diag = j.diag,
 		.default_shader_path = shader_path,
+		.default_include_path = opts->include_path,
 		.default_texture_path = ".",
 		.frame = rib_frame,
 		.user = &j,

@@ -59,11 +59,18 @@ static void usage(FILE *out)
 		"                         sixteen for a matrix. Repeatable (up to %d). The\n"
 		"                         value replaces the one the scene gives, in every\n"
 		"                         frame, as 'relight preview --set' edits a shot\n"
+		"  -I, --include DIR      Look in DIR for shaders' #include files, after the\n"
+		"                         shader's own folder (repeatable, in order; the\n"
+		"                         scene's Option \"searchpath\" \"include\" replaces\n"
+		"                         the list, '@' in it standing for the -I folders)\n"
 		"  -q, --quiet            No progress bar and no summary\n"
 		"  -h, --help             Show this help and exit\n"
 		"\n"
-		"Shaders are looked up along the scene's Option \"searchpath\" \"shader\", then in\n"
-		"$RELIGHT_SHADER_PATH and the standard library (%s).\n"
+		"Shaders are looked up along the scene's Option \"searchpath\" \"shader\", by\n"
+		"default $RELIGHT_SHADER_PATH, then $RMAN_SHADERPATH, then the standard library\n"
+		"(%s): first a file NAME.sl, then a .sl file along the path that declares\n"
+		"the shader NAME (surface NAME(...)); \"null\" is the built-in shader that does\n"
+		"nothing. Each shader file is compiled once a run.\n"
 		"A progress bar is shown when standard error is a terminal; at the end a summary\n"
 		"gives the time, the micropolygons shaded, the subpixel samples and the peak memory.\n"
 		"\n"
@@ -508,8 +515,10 @@ int cmd_render(int argc, char **argv)
 	struct reyes_light_edit edits[MAX_EDITS];
 	char copies[MAX_EDITS][MAX_EDIT_LEN];
 	uint32_t nedits = 0;
+	char includes[8192] = "";
 	static const struct option long_opts[] = {
 		{ "help", no_argument, NULL, 'h' },
+		{ "include", required_argument, NULL, 'I' },
 		{ "output", required_argument, NULL, 'o' },
 		{ "threads", required_argument, NULL, 't' },
 		{ "crop", required_argument, NULL, 'c' },
@@ -521,11 +530,17 @@ int cmd_render(int argc, char **argv)
 	optind = 1;
 	opterr = 0;
 	int opt;
-	while ((opt = getopt_long(argc, argv, ":ho:t:q", long_opts, NULL)) != -1) {
+	while ((opt = getopt_long(argc, argv, ":ho:t:qI:", long_opts, NULL)) != -1) {
 		switch (opt) {
 		case 'h':
 			usage(stdout);
 			return CMD_OK;
+		case 'I': {
+			int rc = cmd_add_include("render", includes, sizeof(includes), optarg);
+			if (rc != CMD_OK)
+				return rc;
+			break;
+		}
 		case 'o': {
 			enum out_kind kind;
 			if (!*optarg || optarg[strlen(optarg) - 1] == '/')
@@ -609,6 +624,7 @@ int cmd_render(int argc, char **argv)
 		.diag = stderr,
 		.default_shader_path = shader_path,
 		.default_texture_path = ".",
+		.default_include_path = includes,
 		.light_edits = edits,
 		.nlight_edits = nedits,
 		.frame = on_frame,
