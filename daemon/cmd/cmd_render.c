@@ -8,6 +8,7 @@
 #include "cmd.h"
 #include "reyes.h"
 #include "ri.h"
+#include "shader_cache.h"
 #include "config.h"
 
 #include <errno.h>
@@ -620,11 +621,15 @@ int cmd_render(int argc, char **argv)
 
 	char shader_path[8192];
 	cmd_shader_path(shader_path, sizeof(shader_path));
+	/* Each shader is compiled once for both reads and every frame. */
+	struct reyes_shader_cache *cache = reyes_shader_cache_create();
+	job.ro.shader_cache = cache;
 	struct reyes_ri_opts ri = {
 		.diag = stderr,
 		.default_shader_path = shader_path,
 		.default_texture_path = ".",
 		.default_include_path = includes,
+		.shader_cache = cache,
 		.light_edits = edits,
 		.nlight_edits = nedits,
 		.frame = on_frame,
@@ -641,6 +646,7 @@ int cmd_render(int argc, char **argv)
 	FILE *check_diag = open_memstream(&check_log, &check_len);
 	if (!check_diag) {
 		fprintf(stderr, "relight render: error: out of memory\n");
+		reyes_shader_cache_destroy(cache);
 		return CMD_FAILED;
 	}
 	ri.diag = check_diag;
@@ -653,6 +659,7 @@ int cmd_render(int argc, char **argv)
 		fputs(check_log ? check_log : "", stderr);
 		free(check_log);
 		plan_free(&job);
+		reyes_shader_cache_destroy(cache);
 		return CMD_FAILED;
 	}
 	free(check_log);
@@ -660,11 +667,13 @@ int cmd_render(int argc, char **argv)
 		fprintf(stderr, "%s: error: the scene has no frame (no WorldBegin ... WorldEnd)\n",
 			path);
 		plan_free(&job);
+		reyes_shader_cache_destroy(cache);
 		return CMD_FAILED;
 	}
 	if (!plan_outputs(&job)) {
 		fprintf(stderr, "relight render: nothing rendered\n");
 		plan_free(&job);
+		reyes_shader_cache_destroy(cache);
 		return CMD_FAILED;
 	}
 
@@ -673,5 +682,6 @@ int cmd_render(int argc, char **argv)
 	job.checking = false;
 	ok = reyes_ri_read(path, &ri, &nerrors);
 	plan_free(&job);
+	reyes_shader_cache_destroy(cache);
 	return ok ? CMD_OK : CMD_FAILED;
 }

@@ -29,6 +29,7 @@
 #include "hider.h"
 #include "ir.h"
 #include "mathlib.h"
+#include "shader_cache.h"
 #include "sl.h"
 #include "strbuf.h"
 #include "texture.h"
@@ -1502,13 +1503,16 @@ static struct sl_program *load_shader(struct ri *ri, const struct rib_request *r
 	forward_reader_diag(ri);
 	struct sl_options so = {.diag = ri->diag, .max_errors = ri->max_errors};
 	so.include_dirs = split_path(ri, inc, &so.n_include_dirs);
-	struct sl_program *prog = sl_compile_file(path, &so);
+	struct reyes_shader_cache *cache = ri->opts->shader_cache;
+	struct sl_program *prog = cache ? reyes_shader_cache_compile(cache, path, &so)
+					: sl_compile_file(path, &so);
 	strmap_put(&ri->shader_cache, key, (uintptr_t)prog);
 	if (!prog) {
 		reyes_ri_err(ri, r->loc, "shader '%s' (%s) did not compile", name, path);
 		return NULL;
 	}
-	rl_vec_push(ri->progs, prog);
+	if (!cache)
+		rl_vec_push(ri->progs, prog);
 	return prog;
 }
 
