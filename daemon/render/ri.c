@@ -1430,22 +1430,6 @@ static void index_shader_names(struct ri *ri, const char *path)
 	}
 }
 
-/* The built-in shader "null" of @kind: it does nothing. */
-static struct sl_program *null_shader(struct ri *ri, enum sl_shader_kind kind)
-{
-	const char *key = rl_arena_printf(ri->perm, "<null %s>", sl_shader_kind_name(kind));
-	uintptr_t v;
-	if (strmap_get(&ri->shader_cache, key, &v))
-		return (struct sl_program *)v;
-	const char *src = rl_arena_printf(ri->perm, "%s null() {}\n", sl_shader_kind_name(kind));
-	struct sl_options so = {.diag = ri->diag, .max_errors = ri->max_errors};
-	struct sl_program *prog = sl_compile_string("null", src, strlen(src), &so);
-	strmap_put(&ri->shader_cache, key, (uintptr_t)prog);
-	if (prog)
-		rl_vec_push(ri->progs, prog);
-	return prog;
-}
-
 /* The folders of the colon-separated @path, in perm, as sl_options wants them. */
 static const char *const *split_path(struct ri *ri, const char *path, size_t *n)
 {
@@ -1484,8 +1468,14 @@ static struct sl_program *load_shader(struct ri *ri, const struct rib_request *r
 			       &v))
 			path = (const char *)v;
 	}
-	if (!path && strcmp(name, "null") == 0)
-		return null_shader(ri, kind);
+	/* The built-in "null": a file of the standard library, so that a shot
+	   baked with it finds its source as it finds any other. */
+	if (!path && strcmp(name, "null") == 0) {
+		const char *lib = rl_arena_printf(ri->perm, "%s/null_%s.sl",
+						  RELIGHT_SOURCE_SHADER_DIR,
+						  sl_shader_kind_name(kind));
+		path = is_file(lib) ? lib : NULL;
+	}
 	if (!path) {
 		reyes_ri_err(ri, r->loc, "cannot find shader '%s' (searched: %s)", name, sp);
 		return NULL;

@@ -166,6 +166,36 @@ render_ok null
 same null ref_black
 run "bake null" "$relight" bake -q -o null.shot.exr null.rib
 expect_status 0
+# The preview of a shot baked with null shaders and a light found by its
+# declared name finds their sources, and matches the render.
+echo 'light MyLight(float intensity = 1) { illuminate(point(0, 0, 0)) { Cl = intensity; } }' \
+	>named/lights.sl
+cat >pv.rib <<'RIB'
+Option "searchpath" "shader" ["named:@"]
+Format 16 16 1
+PixelSamples 1 1
+Display "pv.exr" "file" "rgba"
+Projection "perspective" "fov" 40
+Translate 0 0 5
+WorldBegin
+  LightSource "MyLight" 1
+  LightSource "null" 2
+  Surface "matte"
+  Sphere 1 -1 1 360
+  Translate 0.8 0 -1
+  Surface "null"
+  Sphere 0.5 -0.5 0.5 360
+WorldEnd
+RIB
+render_ok pv
+run "bake pv" "$relight" bake -q -o pv.shot.exr pv.rib
+expect_status 0
+run "preview pv" "$relight" preview --cpu -o pvp.exr pv.shot.exr
+expect_no_crash
+expect_status 0
+run "preview = render" "$relight" diff --fail-above 1 pv.exr pvp.exr
+expect_status 0
+
 # A file null.sl along the path wins over the built-in one.
 cp ref/ref_red.sl ref/null.sl
 sed -i 's/ref_red/null/' ref/null.sl

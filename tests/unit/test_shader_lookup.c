@@ -96,7 +96,7 @@ static void test_declared_name(void)
 	CHECK_STR(names[1], "Later");
 	/* Both.sl (in the later folder b) wins over a/aaa.sl, which declares Both too. */
 	CHECK_STR(names[2], "Both");
-	CHECK_STR(names[3], "null");
+	CHECK_STR(names[3], "null_surface");
 	put("u.rib", "WorldBegin\nSurface \"Wrong\"\nSphere 1 -1 1 360\nWorldEnd\n");
 	CHECK(!read_rib("u.rib", NULL, NULL));
 	CHECK(strstr(diag, "cannot find shader 'Wrong'") != NULL);
@@ -120,30 +120,30 @@ static void test_cache(void)
 {
 	struct reyes_shader_cache *c = reyes_shader_cache_create();
 	uint64_t compiled, reused;
-	/* Two reads, two shaders: each compiled once. */
+	/* Two reads of four shaders (null's file included): each compiled once. */
 	CHECK(read_rib("t.rib", c, NULL));
 	CHECK(read_rib("t.rib", c, NULL));
 	reyes_shader_cache_counts(c, &compiled, &reused);
-	CHECK(compiled == 3);
-	CHECK(reused == 3);
+	CHECK(compiled == 4);
+	CHECK(reused == 4);
 	/* An include's change is seen: compiled again, and the new text used. */
 	CHECK(read_rib("v.rib", c, fmt("%s/h", dir)));
 	CHECK(read_rib("v.rib", c, fmt("%s/h", dir)));
 	reyes_shader_cache_counts(c, &compiled, &reused);
-	CHECK(compiled == 4 && reused == 4);
+	CHECK(compiled == 5 && reused == 5);
 	put("h/k.h", "#define K ((\n");
 	CHECK(!read_rib("v.rib", c, fmt("%s/h", dir)));
 	reyes_shader_cache_counts(c, &compiled, &reused);
-	CHECK(compiled == 5 && reused == 4);
+	CHECK(compiled == 6 && reused == 5);
 	put("h/k.h", "#define K 0.5\n");
 	CHECK(read_rib("v.rib", c, fmt("%s/h", dir)));
 	reyes_shader_cache_counts(c, &compiled, &reused);
-	CHECK(compiled == 6 && reused == 4);
+	CHECK(compiled == 7 && reused == 5);
 	/* Another include path is another compilation. */
 	put("h2/k.h", "#define K 0.25\n");
 	CHECK(read_rib("v.rib", c, fmt("%s/h2", dir)));
 	reyes_shader_cache_counts(c, &compiled, &reused);
-	CHECK(compiled == 7 && reused == 4);
+	CHECK(compiled == 8 && reused == 5);
 	/* A warning of the compilation is repeated when the program is reused. */
 	put("a/warn.sl", "#include \"k.h\" extra\nsurface warn() { Ci = K; }\n");
 	put("x.rib", "WorldBegin\nSurface \"warn\"\nSphere 1 -1 1 360\nWorldEnd\n");
@@ -152,7 +152,7 @@ static void test_cache(void)
 	CHECK(read_rib("x.rib", c, fmt("%s/h", dir)));
 	CHECK(strstr(diag, "warning: extra tokens") != NULL);
 	reyes_shader_cache_counts(c, &compiled, &reused);
-	CHECK(compiled == 8 && reused == 5);
+	CHECK(compiled == 9 && reused == 6);
 	reyes_shader_cache_destroy(c);
 	reyes_shader_cache_destroy(NULL);
 }
