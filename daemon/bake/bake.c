@@ -8,6 +8,7 @@
 #include "fileutil.h"
 #include "shadowgeo.h"
 #include "ri.h"
+#include "shader_cache.h"
 
 #include "arena.h"
 #include "config.h"
@@ -1268,6 +1269,7 @@ struct rib_bake {
 	int frames, baked;
 	double lo, hi, last;         /* the current step's share; the last fraction reported */
 	struct bake_stats *stats;
+	struct reyes_shader_cache *shaders; /* compiled once for the read and every pass */
 };
 
 static void rib_report(struct rib_bake *j, double fraction, const char *what)
@@ -1308,6 +1310,7 @@ static bool rib_frame(void *user, const struct reyes_scene *scene)
 		struct reyes_render_opts ro = {
 			.threads = j->o->threads, .diag = j->diag,
 			.progress_fn = report_it ? rib_pass_progress : NULL, .progress_user = j,
+			.shader_cache = j->shaders,
 		};
 		if (j->verbose)
 			fprintf(j->diag, "frame %d: a shadow pass, rendered\n", j->frames);
@@ -1371,19 +1374,27 @@ bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opt
 
 	/* The reader puts the standard library after any path it is given. */
 	const char *shader_path = opts->shader_path;
+	char env_path[8192];
 	if (!shader_path) {
 		const char *env = getenv("RELIGHT_SHADER_PATH");
-		shader_path = env && *env ? env : NULL;
+		const char *rman = getenv("RMAN_SHADERPATH");
+		env = env ? env : "";
+		rman = rman ? rman : "";
+		snprintf(env_path, sizeof(env_path), "%s%s%s", env, *env && *rman ? ":" : "", rman);
+		shader_path = *env_path ? env_path : NULL;
 	}
 	struct reyes_ri_opts ri = {
 		.diag = j.diag,
 		.default_shader_path = shader_path,
+		.default_include_path = opts->include_path,
+		.shader_cache = j.shaders = reyes_shader_cache_create(),
 		.default_texture_path = ".",
 		.frame = rib_frame,
 		.user = &j,
 	};
 	rib_report(&j, 0.0, "reading");
 	bool ok = reyes_ri_read(rib, &ri, NULL);
+	reyes_shader_cache_destroy(j.shaders);
 	if (ok && !j.baked) {
 		fprintf(j.diag, "%s: error: the scene has no frame to bake (no WorldBegin ... "
 			"WorldEnd other than shadow passes)\n", rib);

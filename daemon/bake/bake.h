@@ -57,8 +57,10 @@ struct bake_opts {
 	bake_progress_fn progress_fn;  /* NULL: none (independent of @progress) */
 	void *progress_user;
 	/* bake_rib_file's shader search path, colon-separated (NULL:
-	 * $RELIGHT_SHADER_PATH, then the standard library). */
+	 * $RELIGHT_SHADER_PATH, then $RMAN_SHADERPATH, then the standard library). */
 	const char *shader_path;
+	/* bake_rib_file's folders for shaders' #include, colon-separated (NULL: none). */
+	const char *include_path;
 };
 
 #define BAKE_DEFAULT_TILE_BUDGET (512ull << 20)

@@ -50,8 +50,18 @@ bool cmd_parse_light_edit(char *arg, const char **light, const char **param, flo
 int cmd_set_option(const char *cmd, const char *arg, char *copy, size_t cap, const char **light,
 		   const char **param, float values[16], uint32_t *n);
 
-/** The default shader search path: $RELIGHT_SHADER_PATH, then the project's library. */
+/**
+ * The default shader search path: $RELIGHT_SHADER_PATH, then
+ * $RMAN_SHADERPATH, then the project's library.
+ */
 void cmd_shader_path(char *buf, size_t size);
+
+/**
+ * Append -I @dir to the colon-separated include path in @buf (@size bytes,
+ * "" at first). Returns CMD_OK, or reports a usage error of @cmd (a folder
+ * holding ':' or too many) and returns its status.
+ */
+int cmd_add_include(const char *cmd, char *buf, size_t size, const char *dir);
 
 /** `relight compile`: check an RSL shader; optionally print its AST, IR or a report. */
 int cmd_compile(int argc, char **argv);

@@ -45,11 +45,17 @@ static void usage(FILE *out)
 		"                           where it holds the values: colours, normals and\n"
 		"                           vectors in half's range, exact halves)\n"
 		"  -t, --threads N          Render with N threads (default: all cores)\n"
+		"  -I, --include DIR        Look in DIR for shaders' #include files, after the\n"
+		"                           shader's own folder (repeatable, in order; the\n"
+		"                           scene's Option \"searchpath\" \"include\" replaces\n"
+		"                           the list, '@' in it standing for the -I folders)\n"
 		"  -q, --quiet              No progress bar and no summary\n"
 		"  -h, --help               Show this help and exit\n"
 		"\n"
-		"Shaders are looked up along the scene's Option \"searchpath\" \"shader\", then in\n"
-		"$RELIGHT_SHADER_PATH and the standard library (%s).\n"
+		"Shaders are looked up along the scene's Option \"searchpath\" \"shader\", by\n"
+		"default $RELIGHT_SHADER_PATH, then $RMAN_SHADERPATH, then the standard library\n"
+		"(%s): first a file NAME.sl, then a .sl file along the path that declares\n"
+		"the shader NAME; \"null\" is the built-in shader that does nothing.\n"
 		"\n"
 		"Exit status: 0 on success, 1 when the scene has errors or cannot be baked\n"
 		"(reported with the file and line), 2 on a usage error.\n",
@@ -105,8 +111,10 @@ int cmd_bake(int argc, char **argv)
 	struct bake_job job = { 0 };
 	char **dyn = NULL;
 	char *out_alloc = NULL;
+	char includes[8192] = "";
 	static const struct option long_opts[] = {
 		{ "help", no_argument, NULL, 'h' },
+		{ "include", required_argument, NULL, 'I' },
 		{ "output", required_argument, NULL, 'o' },
 		{ "dynamic-surface", required_argument, NULL, 'd' },
 		{ "compress", required_argument, NULL, 'c' },
@@ -120,12 +128,19 @@ int cmd_bake(int argc, char **argv)
 	optind = 1;
 	opterr = 0;
 	int opt, rc = CMD_OK;
-	while ((opt = getopt_long(argc, argv, ":ho:t:q", long_opts, NULL)) != -1) {
+	while ((opt = getopt_long(argc, argv, ":ho:t:qI:", long_opts, NULL)) != -1) {
 		switch (opt) {
 		case 'h':
 			usage(stdout);
 			free(dyn);
 			return CMD_OK;
+		case 'I':
+			rc = cmd_add_include("bake", includes, sizeof(includes), optarg);
+			if (rc != CMD_OK) {
+				free(dyn);
+				return rc;
+			}
+			break;
 		case 'o':
 			job.output = optarg;
 			break;
@@ -214,7 +229,9 @@ int cmd_bake(int argc, char **argv)
 	job.bo.progress = !job.quiet && isatty(2);
 	job.bo.diag = stderr;
 
-	/* Shaders: the default search path ($RELIGHT_SHADER_PATH, then the library). */
+	/* Shaders: the default search path ($RELIGHT_SHADER_PATH, $RMAN_SHADERPATH, then
+	   the library). */
+	job.bo.include_path = includes;
 	bool ok = job.output && bake_rib_file(path, job.output, &job.bo, !job.quiet, NULL);
 	if (!ok)
 		rc = CMD_FAILED;

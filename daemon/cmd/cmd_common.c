@@ -79,8 +79,20 @@ bool cmd_parse_light_edit(char *arg, const char **light, const char **param, flo
 void cmd_shader_path(char *buf, size_t size)
 {
 	const char *env = getenv("RELIGHT_SHADER_PATH");
-	snprintf(buf, size, "%s%s%s", env ? env : "", env && *env ? ":" : "",
-		 RELIGHT_SOURCE_SHADER_DIR);
+	const char *rman = getenv("RMAN_SHADERPATH");
+	snprintf(buf, size, "%s%s%s%s%s", env ? env : "", env && *env ? ":" : "",
+		 rman ? rman : "", rman && *rman ? ":" : "", RELIGHT_SOURCE_SHADER_DIR);
+}
+
+int cmd_add_include(const char *cmd, char *buf, size_t size, const char *dir)
+{
+	size_t len = strlen(buf);
+	if (!*dir || strchr(dir, ':'))
+		return cmd_usage_error(cmd, "-I needs a folder without ':', not '%s'", dir);
+	if (len + strlen(dir) + 2 > size)
+		return cmd_usage_error(cmd, "-I folders exceed %zu bytes in all", size - 1);
+	snprintf(buf + len, size - len, "%s%s", len ? ":" : "", dir);
+	return CMD_OK;
 }
 
 int cmd_set_option(const char *cmd, const char *arg, char *copy, size_t cap, const char **light,

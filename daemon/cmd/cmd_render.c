@@ -8,6 +8,7 @@
 #include "cmd.h"
 #include "reyes.h"
 #include "ri.h"
+#include "shader_cache.h"
 #include "config.h"
 
 #include <errno.h>
@@ -59,11 +60,18 @@ static void usage(FILE *out)
 		"                         sixteen for a matrix. Repeatable (up to %d). The\n"
 		"                         value replaces the one the scene gives, in every\n"
 		"                         frame, as 'relight preview --set' edits a shot\n"
+		"  -I, --include DIR      Look in DIR for shaders' #include files, after the\n"
+		"                         shader's own folder (repeatable, in order; the\n"
+		"                         scene's Option \"searchpath\" \"include\" replaces\n"
+		"                         the list, '@' in it standing for the -I folders)\n"
 		"  -q, --quiet            No progress bar and no summary\n"
 		"  -h, --help             Show this help and exit\n"
 		"\n"
-		"Shaders are looked up along the scene's Option \"searchpath\" \"shader\", then in\n"
-		"$RELIGHT_SHADER_PATH and the standard library (%s).\n"
+		"Shaders are looked up along the scene's Option \"searchpath\" \"shader\", by\n"
+		"default $RELIGHT_SHADER_PATH, then $RMAN_SHADERPATH, then the standard library\n"
+		"(%s): first a file NAME.sl, then a .sl file along the path that declares\n"
+		"the shader NAME (surface NAME(...)); \"null\" is the built-in shader that does\n"
+		"nothing. Each shader file is compiled once a run.\n"
 		"A progress bar is shown when standard error is a terminal; at the end a summary\n"
 		"gives the time, the micropolygons shaded, the subpixel samples and the peak memory.\n"
 		"\n"
@@ -508,8 +516,10 @@ int cmd_render(int argc, char **argv)
 	struct reyes_light_edit edits[MAX_EDITS];
 	char copies[MAX_EDITS][MAX_EDIT_LEN];
 	uint32_t nedits = 0;
+	char includes[8192] = "";
 	static const struct option long_opts[] = {
 		{ "help", no_argument, NULL, 'h' },
+		{ "include", required_argument, NULL, 'I' },
 		{ "output", required_argument, NULL, 'o' },
 		{ "threads", required_argument, NULL, 't' },
 		{ "crop", required_argument, NULL, 'c' },
@@ -521,11 +531,17 @@ int cmd_render(int argc, char **argv)
 	optind = 1;
 	opterr = 0;
 	int opt;
-	while ((opt = getopt_long(argc, argv, ":ho:t:q", long_opts, NULL)) != -1) {
+	while ((opt = getopt_long(argc, argv, ":ho:t:qI:", long_opts, NULL)) != -1) {
 		switch (opt) {
 		case 'h':
 			usage(stdout);
 			return CMD_OK;
+		case 'I': {
+			int rc = cmd_add_include("render", includes, sizeof(includes), optarg);
+			if (rc != CMD_OK)
+				return rc;
+			break;
+		}
 		case 'o': {
 			enum out_kind kind;
 			if (!*optarg || optarg[strlen(optarg) - 1] == '/')
@@ -605,10 +621,15 @@ int cmd_render(int argc, char **argv)
 
 	char shader_path[8192];
 	cmd_shader_path(shader_path, sizeof(shader_path));
+	/* Each shader is compiled once for both reads and every frame. */
+	struct reyes_shader_cache *cache = reyes_shader_cache_create();
+	job.ro.shader_cache = cache;
 	struct reyes_ri_opts ri = {
 		.diag = stderr,
 		.default_shader_path = shader_path,
 		.default_texture_path = ".",
+		.default_include_path = includes,
+		.shader_cache = cache,
 		.light_edits = edits,
 		.nlight_edits = nedits,
 		.frame = on_frame,
@@ -625,6 +646,7 @@ int cmd_render(int argc, char **argv)
 	FILE *check_diag = open_memstream(&check_log, &check_len);
 	if (!check_diag) {
 		fprintf(stderr, "relight render: error: out of memory\n");
+		reyes_shader_cache_destroy(cache);
 		return CMD_FAILED;
 	}
 	ri.diag = check_diag;
@@ -637,6 +659,7 @@ int cmd_render(int argc, char **argv)
 		fputs(check_log ? check_log : "", stderr);
 		free(check_log);
 		plan_free(&job);
+		reyes_shader_cache_destroy(cache);
 		return CMD_FAILED;
 	}
 	free(check_log);
@@ -644,11 +667,13 @@ int cmd_render(int argc, char **argv)
 		fprintf(stderr, "%s: error: the scene has no frame (no WorldBegin ... WorldEnd)\n",
 			path);
 		plan_free(&job);
+		reyes_shader_cache_destroy(cache);
 		return CMD_FAILED;
 	}
 	if (!plan_outputs(&job)) {
 		fprintf(stderr, "relight render: nothing rendered\n");
 		plan_free(&job);
+		reyes_shader_cache_destroy(cache);
 		return CMD_FAILED;
 	}
 
@@ -657,5 +682,6 @@ int cmd_render(int argc, char **argv)
 	job.checking = false;
 	ok = reyes_ri_read(path, &ri, &nerrors);
 	plan_free(&job);
+	reyes_shader_cache_destroy(cache);
 	return ok ? CMD_OK : CMD_FAILED;
 }

@@ -25,6 +25,7 @@
 #include "png.h"
 #include "mathlib.h"
 #include "config.h"
+#include "shader_cache.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -1437,10 +1438,13 @@ static bool load_default_surface(struct render *r)
 			snprintf(path, sizeof(path), "%.*s/defaultsurface.sl", (int)len, p);
 			if (access(path, R_OK) == 0) {
 				struct sl_options so = { .diag = r->diag };
-				r->default_prog = sl_compile_file(path, &so);
-				if (r->default_prog) {
+				struct reyes_shader_cache *cache = r->o->shader_cache;
+				struct sl_program *prog =
+					cache ? reyes_shader_cache_compile(cache, path, &so)
+					      : (r->default_prog = sl_compile_file(path, &so));
+				if (prog) {
 					r->default_surface.name = "defaultsurface";
-					r->default_surface.prog = r->default_prog;
+					r->default_surface.prog = prog;
 					sl_m44_identity(r->default_surface.shader_to_world);
 					return true;
 				}

@@ -61,6 +61,9 @@ struct reyes_render_opts {
 	 * not called). */
 	void (*progress_fn)(void *user, double fraction);
 	void *progress_user;
+	/* Where the default surface (defaultsurface.sl) is compiled once for every
+	 * frame of a run (NULL: compiled by each render). */
+	struct reyes_shader_cache *shader_cache;
 };
 
 /** What a render did, for the summary line and the benchmark. */

@@ -26,14 +26,17 @@
 
 #include "arena.h"
 #include "config.h"
+#include "fileutil.h"
 #include "hider.h"
 #include "ir.h"
 #include "mathlib.h"
+#include "shader_cache.h"
 #include "sl.h"
 #include "strbuf.h"
 #include "texture.h"
 
 #include <ctype.h>
+#include <dirent.h>
 #include <float.h>
 #include <math.h>
 #include <stdarg.h>
@@ -244,6 +247,7 @@ static void options_init(struct ri *ri, struct optstate *s)
 	o->shader_path = ri->default_shader_path;
 	o->texture_path = ri->default_texture_path;
 	o->archive_path = ".";
+	o->include_path = ri->default_include_path;
 	sl_m44_identity(o->world_to_camera);
 	sl_m44_identity(o->camera_to_screen);
 }
@@ -682,6 +686,9 @@ static void req_option(struct ri *ri, const struct rib_request *r)
 		} else if (strcmp(pname, "archive") == 0) {
 			slot = &o->archive_path;
 			dflt = ".";
+		} else if (strcmp(pname, "include") == 0) {
+			slot = &o->include_path;
+			dflt = ri->default_include_path;
 		} else {
 			reyes_ri_warn(ri, p->loc, "unknown option 'searchpath' '%s' ignored",
 				      pname);
@@ -1324,34 +1331,212 @@ static const char *search_file(struct ri *ri, const char *name, const char *firs
 	return found;
 }
 
-/* The compiled shader @name (compiled once per read), or NULL (reported). */
+/*
+ * The name the shader in @src declares: the identifier after the first
+ * shader type keyword (surface, light, displacement, volume, imager) that
+ * is followed by '('. Comments, strings and preprocessor lines are skipped;
+ * a name spelled through a macro is not seen. Returns its length (0: none)
+ * and sets *@name to it.
+ */
+static size_t declared_name(const char *src, size_t len, const char **name)
+{
+	static const char *const kinds[] = {"surface", "light", "displacement", "volume",
+					    "imager"};
+	const char *p = src, *end = src + len;
+	const char *prev = NULL; /* the last identifier, when it is a kind */
+	bool line_start = true;
+	while (p < end) {
+		char c = *p;
+		if (c == '\n') {
+			line_start = true;
+			p++;
+			continue;
+		}
+		if (c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v') {
+			p++;
+			continue;
+		}
+		if (line_start && c == '#') {
+			while (p < end && *p != '\n')
+				p += (*p == '\\' && p + 1 < end) ? 2 : 1;
+			continue;
+		}
+		line_start = false;
+		if (c == '/' && p + 1 < end && p[1] == '/') {
+			while (p < end && *p != '\n')
+				p++;
+			continue;
+		}
+		if (c == '/' && p + 1 < end && p[1] == '*') {
+			p += 2;
+			while (p + 1 < end && !(p[0] == '*' && p[1] == '/'))
+				p++;
+			p = p + 1 < end ? p + 2 : end;
+			continue;
+		}
+		if (c == '"') {
+			for (p++; p < end && *p != '"' && *p != '\n'; p++)
+				if (*p == '\\' && p + 1 < end)
+					p++;
+			p = p < end ? p + 1 : end;
+			prev = NULL;
+			continue;
+		}
+		if (isalpha((unsigned char)c) || c == '_') {
+			const char *s = p;
+			while (p < end && (isalnum((unsigned char)*p) || *p == '_'))
+				p++;
+			size_t n = (size_t)(p - s);
+			if (prev) {
+				const char *q = p;
+				while (q < end && isspace((unsigned char)*q))
+					q++;
+				if (q < end && *q == '(') {
+					*name = s;
+					return n;
+				}
+			}
+			prev = NULL;
+			for (size_t k = 0; k < sizeof(kinds) / sizeof(kinds[0]); k++)
+				if (strlen(kinds[k]) == n && memcmp(kinds[k], s, n) == 0)
+					prev = s;
+			continue;
+		}
+		prev = NULL;
+		p++;
+	}
+	return 0;
+}
+
+static int cmp_names(const void *a, const void *b)
+{
+	return strcmp(*(const char *const *)a, *(const char *const *)b);
+}
+
+/*
+ * Index the .sl files of each folder of @path by the name they declare,
+ * once per search path and read: "path\nname" -> file in ri->shader_names.
+ * The first folder of the path that has a name wins, and within a folder
+ * the file whose name sorts first.
+ */
+static void index_shader_names(struct ri *ri, const char *path)
+{
+	uintptr_t v;
+	if (strmap_get(&ri->names_indexed, path, &v))
+		return;
+	strmap_put(&ri->names_indexed, rl_arena_strdup(ri->perm, path), 1);
+	for (const char *p = path; p && *p;) {
+		const char *e = strchr(p, ':');
+		size_t n = e ? (size_t)(e - p) : strlen(p);
+		char *dir = rl_arena_printf(ri->perm, "%.*s", (int)n, p);
+		p = e ? e + 1 : NULL;
+		DIR *d = n ? opendir(dir) : NULL;
+		if (!d)
+			continue;
+		RL_VEC(char *) files = {0};
+		for (struct dirent *de; (de = readdir(d));) {
+			size_t len = strlen(de->d_name);
+			if (len > 3 && strcmp(de->d_name + len - 3, ".sl") == 0)
+				rl_vec_push(files, rl_xstrdup(de->d_name));
+		}
+		closedir(d);
+		if (files.len)
+			qsort(files.data, files.len, sizeof(files.data[0]), cmp_names);
+		for (size_t i = 0; i < files.len; i++) {
+			char *file = rl_arena_printf(ri->perm, "%s/%s", dir, files.data[i]);
+			free(files.data[i]);
+			char err[256];
+			size_t len;
+			char *src = is_file(file) ? rl_read_file(file, 4u << 20, &len, err,
+								 sizeof(err))
+						  : NULL;
+			const char *name;
+			size_t nlen = src ? declared_name(src, len, &name) : 0;
+			if (nlen) {
+				const char *key = rl_arena_printf(ri->perm, "%s\n%.*s", path,
+								  (int)nlen, name);
+				if (!strmap_get(&ri->shader_names, key, &v))
+					strmap_put(&ri->shader_names, key, (uintptr_t)file);
+			}
+			free(src);
+		}
+		rl_vec_free(files);
+	}
+}
+
+/* The folders of the colon-separated @path, in perm, as sl_options wants them. */
+static const char *const *split_path(struct ri *ri, const char *path, size_t *n)
+{
+	*n = 0;
+	size_t cap = 1;
+	for (const char *p = path; p && *p; p++)
+		cap += *p == ':';
+	const char **dirs = rl_arena_alloc(ri->perm, cap * sizeof(*dirs));
+	for (const char *p = path; p && *p;) {
+		const char *e = strchr(p, ':');
+		size_t len = e ? (size_t)(e - p) : strlen(p);
+		if (len)
+			dirs[(*n)++] = rl_arena_printf(ri->perm, "%.*s", (int)len, p);
+		p = e ? e + 1 : NULL;
+	}
+	return dirs;
+}
+
+/*
+ * The compiled shader @name of @kind (compiled once per read), or NULL
+ * (reported). As prman: NAME.sl along the shader path, else the .sl file
+ * along the path that declares a shader NAME, else the built-in "null".
+ */
 static struct sl_program *load_shader(struct ri *ri, const struct rib_request *r,
-				      const char *name)
+				      const char *name, enum sl_shader_kind kind)
 {
 	size_t len = strlen(name);
 	bool has_ext = len > 3 && strcmp(name + len - 3, ".sl") == 0;
+	const char *sp = ri->opt.o.shader_path;
 	const char *file = has_ext ? name : rl_arena_printf(ri->perm, "%s.sl", name);
-	const char *path = search_file(ri, file, NULL, ri->opt.o.shader_path);
+	const char *path = search_file(ri, file, NULL, sp);
+	if (!path && !has_ext && !strchr(name, '/') && sp) {
+		index_shader_names(ri, sp);
+		uintptr_t v;
+		if (strmap_get(&ri->shader_names, rl_arena_printf(ri->perm, "%s\n%s", sp, name),
+			       &v))
+			path = (const char *)v;
+	}
+	/* The built-in "null": a file of the standard library, so that a shot
+	   baked with it finds its source as it finds any other. */
+	if (!path && strcmp(name, "null") == 0) {
+		const char *lib = rl_arena_printf(ri->perm, "%s/null_%s.sl",
+						  RELIGHT_SOURCE_SHADER_DIR,
+						  sl_shader_kind_name(kind));
+		path = is_file(lib) ? lib : NULL;
+	}
 	if (!path) {
-		reyes_ri_err(ri, r->loc, "cannot find shader '%s' (searched: %s)", name,
-			     ri->opt.o.shader_path);
+		reyes_ri_err(ri, r->loc, "cannot find shader '%s' (searched: %s)", name, sp);
 		return NULL;
 	}
+	/* One compilation per file and include path: an #include may find
+	   another file once the include path changes. */
+	const char *inc = ri->opt.o.include_path;
+	const char *key = rl_arena_printf(ri->perm, "%s\n%s", path, inc ? inc : "");
 	uintptr_t v;
-	if (strmap_get(&ri->shader_cache, path, &v)) {
+	if (strmap_get(&ri->shader_cache, key, &v)) {
 		if (!v)
 			reyes_ri_err(ri, r->loc, "shader '%s' (%s) did not compile", name, path);
 		return (struct sl_program *)v;
 	}
 	forward_reader_diag(ri);
 	struct sl_options so = {.diag = ri->diag, .max_errors = ri->max_errors};
-	struct sl_program *prog = sl_compile_file(path, &so);
-	strmap_put(&ri->shader_cache, path, (uintptr_t)prog);
+	so.include_dirs = split_path(ri, inc, &so.n_include_dirs);
+	struct reyes_shader_cache *cache = ri->opts->shader_cache;
+	struct sl_program *prog = cache ? reyes_shader_cache_compile(cache, path, &so)
+					: sl_compile_file(path, &so);
+	strmap_put(&ri->shader_cache, key, (uintptr_t)prog);
 	if (!prog) {
 		reyes_ri_err(ri, r->loc, "shader '%s' (%s) did not compile", name, path);
 		return NULL;
 	}
-	rl_vec_push(ri->progs, prog);
+	if (!cache)
+		rl_vec_push(ri->progs, prog);
 	return prog;
 }
 
@@ -1469,7 +1654,7 @@ static struct reyes_shader *make_shader(struct ri *ri, const struct rib_request 
 	const char *name;
 	if (!reyes_ri_str_arg(ri, r, 0, &name))
 		return NULL;
-	struct sl_program *prog = load_shader(ri, r, name);
+	struct sl_program *prog = load_shader(ri, r, name, want);
 	if (!prog)
 		return NULL;
 	enum sl_shader_kind kind = sl_program_kind(prog);
@@ -2040,6 +2225,9 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 	else
 		ri->default_shader_path = rl_arena_printf(ri->perm, "%s:%s", sp,
 							 RELIGHT_SOURCE_SHADER_DIR);
+	ri->default_include_path = opts->default_include_path && *opts->default_include_path
+					  ? rl_arena_strdup(ri->perm, opts->default_include_path)
+					  : "";
 	ri->default_texture_path = opts->default_texture_path && *opts->default_texture_path
 					  ? rl_arena_strdup(ri->perm, opts->default_texture_path)
 					  : ".";
@@ -2082,6 +2270,8 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 	rl_vec_free(ri->spaces);
 	strmap_free(&ri->decls);
 	strmap_free(&ri->shader_cache);
+	strmap_free(&ri->shader_names);
+	strmap_free(&ri->names_indexed);
 	strmap_free(&ri->pre_space_index);
 	strmap_free(&ri->pre_light_index);
 	strmap_free(&ri->outer_object_index);

@@ -38,6 +38,17 @@ struct reyes_ri_opts {
 	 */
 	const char *default_shader_path;
 	const char *default_texture_path;
+	/**
+	 * Where a shader's #include looks after the shader's own folder
+	 * (relight render -I): colon-separated, NULL for none; '@' in
+	 * Option "searchpath" "include" stands for it.
+	 */
+	const char *default_include_path;
+	/**
+	 * Compiled shaders kept across reads (relight render's two reads of a
+	 * scene), owned by the caller; NULL: each read compiles its own.
+	 */
+	struct reyes_shader_cache *shader_cache;
 	/** Replace the file name of the frame's first image display (relight render -o). */
 	const char *output_override;
 	/**

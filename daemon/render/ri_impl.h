@@ -240,10 +240,13 @@ struct ri {
 
 	struct rl_arena *perm;
 	struct strmap decls;              /* name -> struct decl * */
-	struct strmap shader_cache;       /* path -> struct sl_program * (NULL: failed) */
+	struct strmap shader_cache;       /* path + include path -> struct sl_program * (NULL: failed) */
+	struct strmap shader_names;       /* search path + '\n' + declared name -> file path */
+	struct strmap names_indexed;      /* search paths whose .sl files were read for names */
 	RL_VEC(struct sl_program *) progs;
 	const char *default_shader_path;
 	const char *default_texture_path;
+	const char *default_include_path;
 
 	struct optstate opt;
 	struct gstate gs;

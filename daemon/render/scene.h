@@ -62,6 +62,7 @@ struct reyes_options {
 	const char *shader_path;        /* Option "searchpath": colon-separated, after & and @ */
 	const char *texture_path;
 	const char *archive_path;
+	const char *include_path;       /* where shaders' #include look after their own folder */
 	float world_to_camera[16];      /* the transform at WorldBegin */
 	float camera_to_screen[16];     /* projection (from fov or orthographic) */
 };
