@@ -7,6 +7,7 @@
 #define RL_TEST_H
 
 #include <math.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -59,6 +60,21 @@ static inline int test_finish(void)
 {
 	printf("%d checks, %d failed\n", test_checks, test_failures);
 	return test_failures ? 1 : 0;
+}
+
+static inline const char *test_fmt(const char *f, ...) __attribute__((format(printf, 1, 2)));
+
+/* printf into one of four rotating static buffers, for paths and RIB text. */
+static inline const char *test_fmt(const char *f, ...)
+{
+	static char bufs[4][512];
+	static int k;
+	char *b = bufs[k++ & 3];
+	va_list ap;
+	va_start(ap, f);
+	vsnprintf(b, sizeof(bufs[0]), f, ap);
+	va_end(ap);
+	return b;
 }
 
 #endif

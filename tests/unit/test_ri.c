@@ -22,25 +22,10 @@ static void (*inspect)(const struct reyes_scene *sc);
 static char written[128][160];
 static int nwritten;
 
-static const char *fmt(const char *f, ...) __attribute__((format(printf, 1, 2)));
-
-/* printf into one of a few rotating static buffers. */
-static const char *fmt(const char *f, ...)
-{
-	static char bufs[4][512];
-	static int k;
-	char *b = bufs[k++ & 3];
-	va_list ap;
-	va_start(ap, f);
-	vsnprintf(b, sizeof(bufs[0]), f, ap);
-	va_end(ap);
-	return b;
-}
-
 /* Writes @text to DIR/@name (subdirectories must exist); returns the path. */
 static const char *put(const char *name, const char *text)
 {
-	const char *path = fmt("%s/%s", dir, name);
+	const char *path = test_fmt("%s/%s", dir, name);
 	FILE *f = fopen(path, "w");
 	if (!f) {
 		fprintf(stderr, "cannot write %s\n", path);
@@ -283,22 +268,22 @@ static void test_options(void)
 	/* Unknown options are warnings. */
 	CHECK(run("Option \"limits\" \"bucketsize\" [16 16]\nWorldBegin\nWorldEnd\n", NULL));
 	CHECK(frames == 1);
-	CHECK_DIAG(fmt("%s:1: warning: unknown option 'limits' ignored", rib_path));
+	CHECK_DIAG(test_fmt("%s:1: warning: unknown option 'limits' ignored", rib_path));
 
 	/* Options inside the world are errors, and the frame is not rendered. */
 	int n = 0;
 	CHECK(!run_opts("WorldBegin\nFormat 10 10 1\nWorldEnd\n", NULL, NULL, &n));
 	CHECK(frames == 0);
 	CHECK(n == 1);
-	CHECK_DIAG(fmt("%s:2: error: Format is an option: it must come before WorldBegin",
+	CHECK_DIAG(test_fmt("%s:2: error: Format is an option: it must come before WorldBegin",
 		       rib_path));
 
 	CHECK(!run("Projection \"fisheye\"\nWorldBegin\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:1: error: unsupported projection 'fisheye'", rib_path));
+	CHECK_DIAG(test_fmt("%s:1: error: unsupported projection 'fisheye'", rib_path));
 	CHECK(frames == 0);
 
 	CHECK(!run("PixelFilter \"blurry\" 2 2\nWorldBegin\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:1: error: unknown pixel filter 'blurry'", rib_path));
+	CHECK_DIAG(test_fmt("%s:1: error: unknown pixel filter 'blurry'", rib_path));
 
 	/* The output override renames the first image display, not a depth one. */
 	struct reyes_ri_opts o = {.output_override = "override.exr"};
@@ -374,7 +359,7 @@ static void test_transforms(void)
 	CHECK_NO_DIAG();
 
 	CHECK(!run("WorldBegin\nCoordSysTransform \"nowhere\"\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: unknown coordinate system 'nowhere'", rib_path));
+	CHECK_DIAG(test_fmt("%s:2: error: unknown coordinate system 'nowhere'", rib_path));
 }
 
 static void check_flips(const struct reyes_scene *sc)
@@ -489,7 +474,7 @@ static void test_attributes(void)
 	CHECK_NO_DIAG();
 
 	CHECK(run("WorldBegin\nAttribute \"trace\" \"maxdepth\" 2\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: warning: unknown attribute 'trace' ignored", rib_path));
+	CHECK_DIAG(test_fmt("%s:2: warning: unknown attribute 'trace' ignored", rib_path));
 	CHECK(frames == 1);
 }
 
@@ -528,7 +513,7 @@ static void test_illuminate(void)
 	CHECK_NO_DIAG();
 
 	CHECK(!run("WorldBegin\nIlluminate \"fill\" 1\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: Illuminate: unknown light 'fill'", rib_path));
+	CHECK_DIAG(test_fmt("%s:2: error: Illuminate: unknown light 'fill'", rib_path));
 }
 
 /* ---- shaders ---- */
@@ -588,7 +573,7 @@ static void test_shader_params(void)
 
 	/* A declared type must agree with the shader's. */
 	CHECK(!run("WorldBegin\nSurface \"plastic\" \"color Kd\" [1 1 1]\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: parameter 'Kd' of shader 'plastic' is float, but it is "
+	CHECK_DIAG(test_fmt("%s:2: error: parameter 'Kd' of shader 'plastic' is float, but it is "
 		       "given as color", rib_path));
 	CHECK(frames == 0);
 }
@@ -727,17 +712,17 @@ static void test_primvars(void)
 		  "WorldEnd\n",
 		  check_primvars));
 	CHECK(frames == 1);
-	CHECK_DIAG(fmt("%s:11: warning: PointsPolygons: string primitive variable 'label' ignored",
+	CHECK_DIAG(test_fmt("%s:11: warning: PointsPolygons: string primitive variable 'label' ignored",
 		       rib_path));
 
 	CHECK(!run("WorldBegin\n" TWO_QUADS "  \"uniform float foo\" [1 2 3]\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:4: error: PointsPolygons: primitive variable \"foo\" (uniform float) "
+	CHECK_DIAG(test_fmt("%s:4: error: PointsPolygons: primitive variable \"foo\" (uniform float) "
 		       "needs 2 values, got 3", rib_path));
 	CHECK(!run("WorldBegin\n" TWO_QUADS "  \"Cs\" [1 0 0]\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:4: error: PointsPolygons: primitive variable \"Cs\" (varying color) "
+	CHECK_DIAG(test_fmt("%s:4: error: PointsPolygons: primitive variable \"Cs\" (varying color) "
 		       "needs 18 values, got 3", rib_path));
 	CHECK(!run("WorldBegin\n" TWO_QUADS "  \"mystery\" [1]\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:4: error: PointsPolygons: unknown primitive variable 'mystery'",
+	CHECK_DIAG(test_fmt("%s:4: error: PointsPolygons: unknown primitive variable 'mystery'",
 		       rib_path));
 	CHECK(frames == 0);
 }
@@ -786,7 +771,7 @@ static void test_patches(void)
 
 	CHECK(!run("WorldBegin\nPatchMesh \"bicubic\" 5 \"nonperiodic\" 4 \"nonperiodic\" "
 		   "\"P\" [0 0 0]\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: PatchMesh: 5 x 4 points do not make whole bicubic patches "
+	CHECK_DIAG(test_fmt("%s:2: error: PatchMesh: 5 x 4 points do not make whole bicubic patches "
 		       "with steps 3 and 3", rib_path));
 }
 
@@ -826,7 +811,7 @@ static void test_objects(void)
 	CHECK_NO_DIAG();
 
 	CHECK(!run("WorldBegin\nObjectInstance 7\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: ObjectInstance: unknown object '7'", rib_path));
+	CHECK_DIAG(test_fmt("%s:2: error: ObjectInstance: unknown object '7'", rib_path));
 }
 
 /* Frame 1: the light before FrameBegin, the frame's own, and one in the world. */
@@ -900,7 +885,7 @@ static void test_lights_before_world(void)
 	/* the frame's own light ends with it */
 	CHECK(!run("FrameBegin 1\nLightSource \"pointlight\" 2\nWorldBegin\nWorldEnd\nFrameEnd\n"
 		   "FrameBegin 2\nIlluminate 2 1\nWorldBegin\nWorldEnd\nFrameEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:7: error: Illuminate: unknown light '2'", rib_path));
+	CHECK_DIAG(test_fmt("%s:7: error: Illuminate: unknown light '2'", rib_path));
 }
 
 /* The object's own Color and Surface; the instance's Opacity and Sides. */
@@ -988,22 +973,22 @@ static void test_motion(void)
 
 	CHECK(!run("WorldBegin\nMotionBegin [0 0.5 1]\nTranslate 0 0 0\nTranslate 1 0 0\n"
 		   "Translate 2 0 0\nMotionEnd\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: only 2 motion samples are supported", rib_path));
+	CHECK_DIAG(test_fmt("%s:2: error: only 2 motion samples are supported", rib_path));
 	CHECK(frames == 0);
 
 	CHECK(!run("WorldBegin\nMotionBegin [0 1]\nTranslate 0 0 0\nScale 1 1 1\nMotionEnd\n"
 		   "WorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:4: error: Scale does not match the Translate before it in the "
+	CHECK_DIAG(test_fmt("%s:4: error: Scale does not match the Translate before it in the "
 		       "MotionBegin at line 2", rib_path));
 
 	CHECK(!run("WorldBegin\nMotionBegin [0 1]\nPolygon \"P\" [0 0 0 1 0 0 0 1 0]\n"
 		   "Polygon \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]\nMotionEnd\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:4: error: the Polygon samples of the MotionBegin at line 2 differ",
+	CHECK_DIAG(test_fmt("%s:4: error: the Polygon samples of the MotionBegin at line 2 differ",
 		       rib_path));
 
 	CHECK(!run("WorldBegin\nMotionBegin [0 1]\nColor 1 0 0\nColor 0 1 0\nMotionEnd\n"
 		   "WorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:3: error: Color cannot be inside the MotionBegin at line 2",
+	CHECK_DIAG(test_fmt("%s:3: error: Color cannot be inside the MotionBegin at line 2",
 		       rib_path));
 }
 
@@ -1014,56 +999,56 @@ static void check_archive(const struct reyes_scene *sc)
 		CHECK(sc->prims[0].kind == REYES_DISK);
 		CHECK(sc->prims[1].kind == REYES_SPHERE);
 	}
-	CHECK_STR(sc->opts.archive_path, fmt("/nonexistent:%s/arch", dir));
+	CHECK_STR(sc->opts.archive_path, test_fmt("/nonexistent:%s/arch", dir));
 }
 
 static void check_archive_default(const struct reyes_scene *sc)
 {
 	CHECK(sc->nprims == 1);
-	CHECK_STR(sc->opts.archive_path, fmt("%s/arch:.", dir));
-	CHECK_STR(sc->opts.shader_path, fmt("/nowhere:%s", RELIGHT_SOURCE_SHADER_DIR));
+	CHECK_STR(sc->opts.archive_path, test_fmt("%s/arch:.", dir));
+	CHECK_STR(sc->opts.shader_path, test_fmt("/nowhere:%s", RELIGHT_SOURCE_SHADER_DIR));
 }
 
 static void test_archives(void)
 {
-	mkdir(fmt("%s/arch", dir), 0700);
+	mkdir(test_fmt("%s/arch", dir), 0700);
 	put("arch/geo.rib", "Sphere 1 -1 1 360\n");
 	put("arch/nested.rib", "Disk 0 1 360\nReadArchive \"geo.rib\"\n");
 	put("arch/self.rib", "ReadArchive \"self.rib\"\n");
 	put("arch/open.rib", "AttributeBegin\n");
-	CHECK(run(fmt("Option \"searchpath\" \"archive\" \"/nonexistent\"\n"
+	CHECK(run(test_fmt("Option \"searchpath\" \"archive\" \"/nonexistent\"\n"
 		      "Option \"searchpath\" \"archive\" \"&:%s/arch\"\n"
 		      "WorldBegin\nReadArchive \"nested.rib\"\nWorldEnd\n", dir),
 		  check_archive));
 	CHECK(frames == 1);
 	CHECK_NO_DIAG();
 
-	CHECK(run(fmt("Option \"searchpath\" \"archive\" \"%s/arch:@\" \"shader\" \"/nowhere:@\"\n"
+	CHECK(run(test_fmt("Option \"searchpath\" \"archive\" \"%s/arch:@\" \"shader\" \"/nowhere:@\"\n"
 		      "WorldBegin\nReadArchive \"geo.rib\"\nWorldEnd\n", dir),
 		  check_archive_default));
 	CHECK(frames == 1);
 
 	CHECK(!run("WorldBegin\nReadArchive \"geo.rib\"\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: cannot find archive 'geo.rib'", rib_path));
+	CHECK_DIAG(test_fmt("%s:2: error: cannot find archive 'geo.rib'", rib_path));
 	CHECK(frames == 0);
 
-	CHECK(!run(fmt("WorldBegin\nReadArchive \"%s/arch/self.rib\"\nWorldEnd\n", dir), NULL));
-	CHECK_DIAG(fmt("%s/arch/self.rib:1: error: ReadArchive 'self.rib' would read itself again",
+	CHECK(!run(test_fmt("WorldBegin\nReadArchive \"%s/arch/self.rib\"\nWorldEnd\n", dir), NULL));
+	CHECK_DIAG(test_fmt("%s/arch/self.rib:1: error: ReadArchive 'self.rib' would read itself again",
 		       dir));
 
 	/* A chain of 70 archives, each reading the next: nesting stops at 64. */
 	for (int i = 0; i < 70; i++)
-		put(fmt("arch/c%d.rib", i), fmt("ReadArchive \"c%d.rib\"\n", i + 1));
+		put(test_fmt("arch/c%d.rib", i), test_fmt("ReadArchive \"c%d.rib\"\n", i + 1));
 	put("arch/c70.rib", "Sphere 1 -1 1 360\n");
 	int n = 0;
-	CHECK(!run_opts(fmt("WorldBegin\nReadArchive \"%s/arch/c0.rib\"\nWorldEnd\n", dir), NULL,
+	CHECK(!run_opts(test_fmt("WorldBegin\nReadArchive \"%s/arch/c0.rib\"\nWorldEnd\n", dir), NULL,
 			NULL, &n));
-	CHECK_DIAG(fmt("%s/arch/c63.rib:1: error: ReadArchive 'c64.rib': archives nested too "
+	CHECK_DIAG(test_fmt("%s/arch/c63.rib:1: error: ReadArchive 'c64.rib': archives nested too "
 		       "deeply (limit 64)", dir));
 	CHECK(n == 1 && frames == 0);
 
-	CHECK(!run(fmt("WorldBegin\nReadArchive \"%s/arch/open.rib\"\nWorldEnd\n", dir), NULL));
-	CHECK_DIAG(fmt("%s/arch/open.rib:1: error: the file ends inside the AttributeBegin at "
+	CHECK(!run(test_fmt("WorldBegin\nReadArchive \"%s/arch/open.rib\"\nWorldEnd\n", dir), NULL));
+	CHECK_DIAG(test_fmt("%s/arch/open.rib:1: error: the file ends inside the AttributeBegin at "
 		       "line 1", dir));
 	CHECK(frames == 0);
 }
@@ -1074,48 +1059,48 @@ static void test_errors(void)
 {
 	const char *sh = RELIGHT_SOURCE_SHADER_DIR;
 	CHECK(!run("WorldBegin\nSurface \"plastic\" \"Kdd\" 1\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: shader 'plastic' has no parameter 'Kdd'\n", rib_path));
+	CHECK_DIAG(test_fmt("%s:2: error: shader 'plastic' has no parameter 'Kdd'\n", rib_path));
 	CHECK(frames == 0);
 
 	CHECK(!run("WorldBegin\nSurface \"plastic\" \"Kd\" [1 2]\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: parameter 'Kd' of shader 'plastic' needs 1 value, got 2\n",
+	CHECK_DIAG(test_fmt("%s:2: error: parameter 'Kd' of shader 'plastic' needs 1 value, got 2\n",
 		       rib_path));
 
 	CHECK(!run("WorldBegin\nSurface \"nosuch\"\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: cannot find shader 'nosuch' (searched: %s)\n", rib_path, sh));
+	CHECK_DIAG(test_fmt("%s:2: error: cannot find shader 'nosuch' (searched: %s)\n", rib_path, sh));
 
 	CHECK(!run("WorldBegin\nSurface \"pointlight\"\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: Surface needs a surface shader, but 'pointlight' is a light "
+	CHECK_DIAG(test_fmt("%s:2: error: Surface needs a surface shader, but 'pointlight' is a light "
 		       "shader\n", rib_path));
 
 	CHECK(!run("WorldBegin\nPointsPolygons [3] [0 1 5] \"P\" [0 0 0 1 0 0 0 1 0]\nWorldEnd\n",
 		   NULL));
-	CHECK_DIAG(fmt("%s:2: error: PointsPolygons: vertex index 5 (element 2) is out of range "
+	CHECK_DIAG(test_fmt("%s:2: error: PointsPolygons: vertex index 5 (element 2) is out of range "
 		       "(3 points)\n", rib_path));
 
 	CHECK(!run("WorldBegin\nPolygon \"P\" [0 0 0 1 0 0 0 1]\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: Polygon: \"P\" has 8 values, not a multiple of 3\n",
+	CHECK_DIAG(test_fmt("%s:2: error: Polygon: \"P\" has 8 values, not a multiple of 3\n",
 		       rib_path));
 
 	/* Unbalanced blocks name both lines. */
 	int n = 0;
 	CHECK(!run_opts("WorldBegin\nTransformBegin\nSphere 1 -1 1 360\nAttributeEnd\n"
 			"TransformEnd\nWorldEnd\n", NULL, NULL, &n));
-	CHECK_DIAG(fmt("%s:4: error: AttributeEnd at line 4 does not close the TransformBegin at "
+	CHECK_DIAG(test_fmt("%s:4: error: AttributeEnd at line 4 does not close the TransformBegin at "
 		       "line 2\n", rib_path));
 	CHECK(n == 1 && frames == 0);
 
 	CHECK(!run("AttributeEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:1: error: AttributeEnd without a matching AttributeBegin\n", rib_path));
+	CHECK_DIAG(test_fmt("%s:1: error: AttributeEnd without a matching AttributeBegin\n", rib_path));
 
 	CHECK(!run_opts("WorldBegin\nAttributeBegin\nSphere 1 -1 1 360\n", NULL, NULL, &n));
-	CHECK_DIAG(fmt("%s:3: error: the file ends inside the AttributeBegin at line 2\n",
+	CHECK_DIAG(test_fmt("%s:3: error: the file ends inside the AttributeBegin at line 2\n",
 		       rib_path));
-	CHECK_DIAG(fmt("%s:3: error: the file ends inside the WorldBegin at line 1\n", rib_path));
+	CHECK_DIAG(test_fmt("%s:3: error: the file ends inside the WorldBegin at line 1\n", rib_path));
 	CHECK(n == 2 && frames == 0);
 
 	CHECK(!run("Sphere 1 -1 1 360\n", NULL));
-	CHECK_DIAG(fmt("%s:1: error: Sphere outside WorldBegin/WorldEnd\n", rib_path));
+	CHECK_DIAG(test_fmt("%s:1: error: Sphere outside WorldBegin/WorldEnd\n", rib_path));
 
 	/* A frame with an error is not rendered; the next one is. */
 	CHECK(!run_opts("FrameBegin 1\nWorldBegin\nSurface \"nosuch\"\nWorldEnd\nFrameEnd\n"
@@ -1125,31 +1110,31 @@ static void test_errors(void)
 	/* So is a frame with a syntax error the reader found. */
 	CHECK(!run_opts("WorldBegin\nSphere 1 -1\nWorldEnd\n", NULL, NULL, &n));
 	CHECK(frames == 0 && n == 1);
-	CHECK_DIAG(fmt("%s:2: error: ", rib_path));
+	CHECK_DIAG(test_fmt("%s:2: error: ", rib_path));
 
 	/* MakeTexture's failures are reported at its line. */
 	CHECK(!run("MakeTexture \"missing.exr\" \"out.tex\" \"periodic\" \"clamp\" \"box\" 1 1\n",
 		   NULL));
-	CHECK_DIAG(fmt("%s:1: error: MakeTexture 'missing.exr' -> 'out.tex' failed\n", rib_path));
+	CHECK_DIAG(test_fmt("%s:1: error: MakeTexture 'missing.exr' -> 'out.tex' failed\n", rib_path));
 
 	CHECK(!run("MakeShadow \"missing.z\" \"out.shd\"\n", NULL));
-	CHECK_DIAG(fmt("%s:1: error: MakeShadow 'missing.z' -> 'out.shd' failed\n", rib_path));
+	CHECK_DIAG(test_fmt("%s:1: error: MakeShadow 'missing.z' -> 'out.shd' failed\n", rib_path));
 
 	CHECK(!run("WorldBegin\nSurface \"plastic\" \"Kd\" 1 \"Kd\" 2\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: parameter 'Kd' of shader 'plastic' is given twice\n",
+	CHECK_DIAG(test_fmt("%s:2: error: parameter 'Kd' of shader 'plastic' is given twice\n",
 		       rib_path));
 
 	CHECK(!run("WorldBegin\nMotionBegin [0 1]\nTranslate 1 0 0\nMotionEnd\nWorldEnd\n", NULL));
-	CHECK_DIAG(fmt("%s:2: error: MotionBegin has 2 times but 1 sample\n", rib_path));
+	CHECK_DIAG(test_fmt("%s:2: error: MotionBegin has 2 times but 1 sample\n", rib_path));
 
 	/* Errors stop at max_errors. */
 	struct reyes_ri_opts o = {.max_errors = 3};
 	CHECK(!run_opts("Sides 3\nSides 3\nSides 3\nSides 3\nSides 3\n", NULL, &o, &n));
 	CHECK(n == 3);
-	CHECK(!strstr(diag, fmt("%s:4:", rib_path)));
+	CHECK(!strstr(diag, test_fmt("%s:4:", rib_path)));
 
 	/* A missing file. */
-	CHECK(!reyes_ri_read(fmt("%s/no-such.rib", dir),
+	CHECK(!reyes_ri_read(test_fmt("%s/no-such.rib", dir),
 			     &(struct reyes_ri_opts){.diag = fopen("/dev/null", "w")}, &n));
 	CHECK(n == 1);
 }
@@ -1205,7 +1190,7 @@ int main(void)
 	RUN(test_frame_refused);
 	for (int i = 0; i < nwritten; i++)
 		unlink(written[i]);
-	rmdir(fmt("%s/arch", dir));
+	rmdir(test_fmt("%s/arch", dir));
 	rmdir(dir);
 	return test_finish();
 }

@@ -20,23 +20,9 @@ static char diag[1 << 16];
 static char names[8][64];      /* the surface shaders of the last frame's primitives */
 static int nnames;
 
-static const char *fmt(const char *f, ...) __attribute__((format(printf, 1, 2)));
-
-static const char *fmt(const char *f, ...)
-{
-	static char bufs[4][512];
-	static int k;
-	char *b = bufs[k++ & 3];
-	va_list ap;
-	va_start(ap, f);
-	vsnprintf(b, sizeof(bufs[0]), f, ap);
-	va_end(ap);
-	return b;
-}
-
 static const char *put(const char *name, const char *text)
 {
-	const char *path = fmt("%s/%s", dir, name);
+	const char *path = test_fmt("%s/%s", dir, name);
 	FILE *f = fopen(path, "w");
 	if (!f) {
 		fprintf(stderr, "cannot write %s\n", path);
@@ -65,11 +51,11 @@ static bool read_rib(const char *rib, struct reyes_shader_cache *cache, const ch
 	FILE *d = tmpfile();
 	struct reyes_ri_opts o = {
 		.diag = d, .frame = on_frame, .shader_cache = cache,
-		.default_shader_path = fmt("%s/a:%s/b", dir, dir), .default_include_path = inc,
+		.default_shader_path = test_fmt("%s/a:%s/b", dir, dir), .default_include_path = inc,
 	};
 	int nerrors = 0;
 	nnames = 0;
-	bool ok = reyes_ri_read(fmt("%s/%s", dir, rib), &o, &nerrors);
+	bool ok = reyes_ri_read(test_fmt("%s/%s", dir, rib), &o, &nerrors);
 	rewind(d);
 	size_t n = fread(diag, 1, sizeof(diag) - 1, d);
 	diag[n] = '\0';
@@ -109,9 +95,9 @@ static void test_includes(void)
 	put("v.rib", "WorldBegin\nSurface \"inc\"\nSphere 1 -1 1 360\nWorldEnd\n");
 	CHECK(!read_rib("v.rib", NULL, NULL));
 	CHECK(strstr(diag, "cannot find include file 'k.h'") != NULL);
-	CHECK(read_rib("v.rib", NULL, fmt("%s/h", dir)));
+	CHECK(read_rib("v.rib", NULL, test_fmt("%s/h", dir)));
 	CHECK_STR(names[0], "inc");
-	put("w.rib", fmt("Option \"searchpath\" \"include\" [\"%s/none:%s/h\"]\n"
+	put("w.rib", test_fmt("Option \"searchpath\" \"include\" [\"%s/none:%s/h\"]\n"
 			 "WorldBegin\nSurface \"inc\"\nSphere 1 -1 1 360\nWorldEnd\n", dir, dir));
 	CHECK(read_rib("w.rib", NULL, NULL));
 }
@@ -127,29 +113,29 @@ static void test_cache(void)
 	CHECK(compiled == 4);
 	CHECK(reused == 4);
 	/* An include's change is seen: compiled again, and the new text used. */
-	CHECK(read_rib("v.rib", c, fmt("%s/h", dir)));
-	CHECK(read_rib("v.rib", c, fmt("%s/h", dir)));
+	CHECK(read_rib("v.rib", c, test_fmt("%s/h", dir)));
+	CHECK(read_rib("v.rib", c, test_fmt("%s/h", dir)));
 	reyes_shader_cache_counts(c, &compiled, &reused);
 	CHECK(compiled == 5 && reused == 5);
 	put("h/k.h", "#define K ((\n");
-	CHECK(!read_rib("v.rib", c, fmt("%s/h", dir)));
+	CHECK(!read_rib("v.rib", c, test_fmt("%s/h", dir)));
 	reyes_shader_cache_counts(c, &compiled, &reused);
 	CHECK(compiled == 6 && reused == 5);
 	put("h/k.h", "#define K 0.5\n");
-	CHECK(read_rib("v.rib", c, fmt("%s/h", dir)));
+	CHECK(read_rib("v.rib", c, test_fmt("%s/h", dir)));
 	reyes_shader_cache_counts(c, &compiled, &reused);
 	CHECK(compiled == 7 && reused == 5);
 	/* Another include path is another compilation. */
 	put("h2/k.h", "#define K 0.25\n");
-	CHECK(read_rib("v.rib", c, fmt("%s/h2", dir)));
+	CHECK(read_rib("v.rib", c, test_fmt("%s/h2", dir)));
 	reyes_shader_cache_counts(c, &compiled, &reused);
 	CHECK(compiled == 8 && reused == 5);
 	/* A warning of the compilation is repeated when the program is reused. */
 	put("a/warn.sl", "#include \"k.h\" extra\nsurface warn() { Ci = K; }\n");
 	put("x.rib", "WorldBegin\nSurface \"warn\"\nSphere 1 -1 1 360\nWorldEnd\n");
-	CHECK(read_rib("x.rib", c, fmt("%s/h", dir)));
+	CHECK(read_rib("x.rib", c, test_fmt("%s/h", dir)));
 	CHECK(strstr(diag, "warning: extra tokens") != NULL);
-	CHECK(read_rib("x.rib", c, fmt("%s/h", dir)));
+	CHECK(read_rib("x.rib", c, test_fmt("%s/h", dir)));
 	CHECK(strstr(diag, "warning: extra tokens") != NULL);
 	reyes_shader_cache_counts(c, &compiled, &reused);
 	CHECK(compiled == 9 && reused == 6);
@@ -164,15 +150,15 @@ int main(void)
 		perror("mkdtemp");
 		return 1;
 	}
-	mkdir(fmt("%s/a", dir), 0755);
-	mkdir(fmt("%s/b", dir), 0755);
-	mkdir(fmt("%s/h", dir), 0755);
-	mkdir(fmt("%s/h2", dir), 0755);
+	mkdir(test_fmt("%s/a", dir), 0755);
+	mkdir(test_fmt("%s/b", dir), 0755);
+	mkdir(test_fmt("%s/h", dir), 0755);
+	mkdir(test_fmt("%s/h2", dir), 0755);
 	RUN(test_declared_name);
 	RUN(test_includes);
 	RUN(test_cache);
 	int rc = test_finish();
-	if (system(fmt("rm -rf '%s'", dir)) != 0)
+	if (system(test_fmt("rm -rf '%s'", dir)) != 0)
 		fprintf(stderr, "cannot remove %s\n", dir);
 	return rc;
 }
