@@ -338,6 +338,11 @@ static exr_result_t write_all(exr_context_t ctx, const struct reyes_image *level
 	exr_attr_set_string(ctx, part, "software", "relight");
 	if (o->wrapmodes)
 		exr_attr_set_string(ctx, part, "wrapmodes", o->wrapmodes);
+	if (o->envmap == REYES_ENVMAP_LATLONG || o->envmap == REYES_ENVMAP_CUBE)
+		exr_attr_set_envmap(ctx, part, "envmap", o->envmap == REYES_ENVMAP_CUBE ?
+								 EXR_ENVMAP_CUBE : EXR_ENVMAP_LATLONG);
+	if (o->fov > 0.0f)
+		exr_attr_set_float(ctx, part, "fov", o->fov);
 	for (uint32_t k = 0; k < o->nstrattrs; k++)
 		if (valid_name(o->strattrs[2 * k]) && o->strattrs[2 * k + 1])
 			exr_attr_set_string(ctx, part, o->strattrs[2 * k], o->strattrs[2 * k + 1]);
@@ -849,8 +854,14 @@ static exr_result_t read_pixels(exr_context_t ctx, bool all_levels, struct reyes
 		snprintf(f->wrapmodes, sizeof(f->wrapmodes), "%.*s", (int)a->string->length,
 			 a->string->str);
 	if (exr_get_attribute_by_name(ctx, 0, "envmap", &a) == EXR_ERR_SUCCESS && a &&
-	    a->type == EXR_ATTR_ENVMAP)
+	    a->type == EXR_ATTR_ENVMAP) {
 		f->latlong = a->uc == EXR_ENVMAP_LATLONG;
+		f->cube = a->uc == EXR_ENVMAP_CUBE;
+	}
+	f->fov = 90.0f;
+	if (exr_get_attribute_by_name(ctx, 0, "fov", &a) == EXR_ERR_SUCCESS && a &&
+	    a->type == EXR_ATTR_FLOAT && isfinite(a->f) && a->f > 0.0f && a->f < 180.0f)
+		f->fov = a->f;
 	if (exr_get_attribute_by_name(ctx, 0, "bias", &a) == EXR_ERR_SUCCESS && a &&
 	    a->type == EXR_ATTR_FLOAT && isfinite(a->f)) {
 		f->has_bias = true;

@@ -16,7 +16,12 @@ struct reyes_exr_write_opts {
 	const char *wrapmodes;       /* "wrapmodes" string attribute; NULL: none */
 	const char *const *strattrs; /* more string attributes: name, value, name, value... */
 	uint32_t nstrattrs;          /* number of pairs */
+	int envmap;                  /* REYES_ENVMAP_*: the "envmap" attribute, or none */
+	float fov;                   /* a cube map's "fov" attribute (degrees), 0: none */
 };
+
+/* Kinds of environment map, as OpenEXR's "envmap" attribute has them. */
+enum { REYES_ENVMAP_NONE, REYES_ENVMAP_LATLONG, REYES_ENVMAP_CUBE };
 
 /**
  * Write @nlevels images as one OpenEXR file: scanline with ZIP compression
@@ -37,6 +42,8 @@ struct reyes_exr_file {
 	bool half;                   /* every channel other than "Z" is stored as half */
 	char wrapmodes[64];          /* the "wrapmodes" attribute, "" when absent */
 	bool latlong;                /* an "envmap" attribute says latitude-longitude */
+	bool cube;                   /* an "envmap" attribute says cube faces (see texture.c) */
+	float fov;                   /* a cube map's "fov" attribute, 90 when absent */
 	bool has_bias;               /* a float "bias" attribute (shadow maps) */
 	float bias;
 };

@@ -87,6 +87,16 @@ const struct reyes_primvar *reyes_prim_var(const struct reyes_prim *p, const cha
 	return NULL;
 }
 
+bool reyes_prim_deforms(const struct reyes_prim *p)
+{
+	if (!p)
+		return false;
+	if (p->kind < REYES_POLYGONS)
+		return p->qmoving;
+	const struct reyes_primvar *P = reyes_prim_var(p, "P");
+	return P && P->values1;
+}
+
 /* Floats per item of a primitive variable (0 for strings). */
 static size_t var_stride(const struct reyes_primvar *v)
 {
@@ -118,29 +128,43 @@ struct quadric {
 	double p1[3], p2[3];   /* hyperboloid */
 };
 
-/* False for a quadric with no area (zero radius, thetamax 0, ...) or non-finite parameters. */
-static bool quadric_setup(const struct reyes_prim *p, struct quadric *q)
+/* The number of parameters of a quadric kind; 0 for other kinds. */
+static int quadric_nparams(enum reyes_prim_kind kind)
 {
-	int nq;
-	switch (p->kind) {
-	case REYES_SPHERE: case REYES_CYLINDER: case REYES_PARABOLOID: nq = 4; break;
-	case REYES_CONE: case REYES_DISK: nq = 3; break;
-	case REYES_HYPERBOLOID: nq = 7; break;
-	case REYES_TORUS: nq = 5; break;
-	default: return false;
+	switch (kind) {
+	case REYES_SPHERE: case REYES_CYLINDER: case REYES_PARABOLOID: return 4;
+	case REYES_CONE: case REYES_DISK: return 3;
+	case REYES_HYPERBOLOID: return 7;
+	case REYES_TORUS: return 5;
+	default: return 0;
 	}
+}
+
+/*
+ * The quadric of @kind with RIB parameters @a into @q. False for a quadric
+ * with no area (zero radius, thetamax 0, ...); *ok false as well for
+ * non-finite parameters. A quadric with no area still evaluates to finite
+ * points (a zero radius puts them all on the axis), which is what the
+ * degenerate sample of a deforming quadric needs (a sphere growing from
+ * radius 0).
+ */
+static bool quadric_params(enum reyes_prim_kind kind, const float *a, struct quadric *q,
+			   bool *ok)
+{
+	int nq = quadric_nparams(kind);
+	*ok = nq > 0;
 	for (int i = 0; i < nq; i++)
-		if (!isfinite(p->q[i]))
-			return false;
+		if (!isfinite(a[i]))
+			*ok = false;
 	memset(q, 0, sizeof(*q));
-	q->kind = p->kind;
-	/* A sweep past a full turn would only cover the surface again. */
-	double tm = clampd(p->q[nq - 1], -360.0, 360.0);
-	if (tm == 0.0)
+	q->kind = kind;
+	if (!*ok)
 		return false;
+	/* A sweep past a full turn would only cover the surface again. */
+	double tm = clampd(a[nq - 1], -360.0, 360.0);
 	q->tmax = tm * DEG_TO_RAD;
-	const float *a = p->q;
-	switch (p->kind) {
+	bool area = tm != 0.0;
+	switch (kind) {
 	case REYES_SPHERE:
 		/* asin(z/r), clamped: -90 below -r and 90 above r, as RISpec has it for r > 0. */
 		q->a = a[0];
@@ -148,32 +172,58 @@ static bool quadric_setup(const struct reyes_prim *p, struct quadric *q)
 			return false;
 		q->b = asin(clampd(a[1] / q->a, -1.0, 1.0));
 		q->c = asin(clampd(a[2] / q->a, -1.0, 1.0));
-		return q->b != q->c;
+		return area && q->b != q->c;
 	case REYES_CYLINDER:
 		q->a = a[0], q->b = a[1], q->c = a[2];
-		return q->a != 0.0 && q->b != q->c;
+		return area && q->a != 0.0 && q->b != q->c;
 	case REYES_CONE:
 	case REYES_DISK:
 		q->a = a[0], q->b = a[1];
-		return q->b != 0.0;
+		return area && q->b != 0.0;
 	case REYES_PARABOLOID:
 		q->a = a[0], q->b = a[1], q->c = a[2];
+		if (q->c == 0.0) {
+			/* No paraboloid: its points on the axis at zmin. */
+			q->a = 0.0, q->c = 1.0, q->b = fmin(q->b, 1.0);
+			return false;
+		}
 		/* (z = zmax itself is always on the paraboloid's side of 0.) */
-		return q->a != 0.0 && q->c != 0.0 && q->b != q->c;
+		return area && q->a != 0.0 && q->b != q->c;
 	case REYES_TORUS:
 		q->a = a[0], q->b = a[1];
 		q->c = a[2] * DEG_TO_RAD, q->d = a[3] * DEG_TO_RAD;
-		return q->b != 0.0 && q->c != q->d;
+		return area && q->b != 0.0 && q->c != q->d;
 	case REYES_HYPERBOLOID:
 		for (int i = 0; i < 3; i++)
 			q->p1[i] = a[i], q->p2[i] = a[3 + i];
 		if (q->p1[0] == q->p2[0] && q->p1[1] == q->p2[1] && q->p1[2] == q->p2[2])
 			return false;
 		/* A segment on the axis sweeps nothing. */
-		return q->p1[0] != 0.0 || q->p1[1] != 0.0 || q->p2[0] != 0.0 || q->p2[1] != 0.0;
+		return area && (q->p1[0] != 0.0 || q->p1[1] != 0.0 || q->p2[0] != 0.0 ||
+				q->p2[1] != 0.0);
 	default:
 		return false;
 	}
+}
+
+/*
+ * The quadric @p at shutter open (q[0]) and close (q[1], the same unless it
+ * deforms); *shape: the one whose derivatives and normals the grid takes
+ * (the open one, unless only the close one has area). False when it has no
+ * area at either time or a parameter is not finite.
+ */
+static bool quadric_setup(const struct reyes_prim *p, struct quadric q[2], int *shape)
+{
+	bool ok0, ok1;
+	bool area0 = quadric_params(p->kind, p->q, &q[0], &ok0);
+	*shape = 0;
+	if (!p->qmoving) {
+		q[1] = q[0];
+		return area0;
+	}
+	bool area1 = quadric_params(p->kind, p->q1, &q[1], &ok1);
+	*shape = area0 ? 0 : 1;
+	return ok0 && ok1 && (area0 || area1);
 }
 
 /* The profile point c(v) (before the rotation) and dc/dv. */
@@ -1239,7 +1289,9 @@ enum piece_kind { PIECE_QUADRIC, PIECE_BILINEAR, PIECE_BICUBIC };
  */
 struct piece {
 	enum piece_kind kind;
-	struct quadric q;
+	struct quadric q[2];        /* a quadric at shutter open and close */
+	int qshape;                 /* which of them gives derivatives and normals */
+	bool qmoving;
 	const float *P[2];          /* vertex positions at shutter open and close */
 	uint32_t nsrc;
 	uint32_t vtx[4], vary[4], fvary[4];  /* source item of each class */
@@ -1248,6 +1300,7 @@ struct piece {
 	uint32_t cp[16];            /* bicubic: control point at u index k, v index l: cp[l * 4 + k] */
 	double bu[16], bv[16];      /* bicubic bases */
 	double uoff, uscale, voff, vscale;  /* primitive u = uoff + uscale * piece-local u */
+	bool height;                /* a height field: x, y are the primitive's u, v */
 };
 
 static void identity_weights(struct piece *pc)
@@ -1316,6 +1369,7 @@ static bool setup_patch(const struct reyes_patch *pa, struct piece *pc)
 	pc->P[0] = P->values;
 	pc->P[1] = P->values1 ? P->values1 : P->values;
 	pc->uniform = pa->piece;
+	pc->height = p->heightfield;
 	pc->uoff = (double)cu / ncu, pc->uscale = 1.0 / ncu;
 	pc->voff = (double)cv / ncv, pc->vscale = 1.0 / ncv;
 	identity_weights(pc);
@@ -1362,9 +1416,10 @@ static bool setup_piece(const struct reyes_patch *pa, struct piece *pc)
 	case REYES_PATCHES:
 		return setup_patch(pa, pc);
 	default:
-		if (pa->piece != 0 || !quadric_setup(p, &pc->q))
+		if (pa->piece != 0 || !quadric_setup(p, pc->q, &pc->qshape))
 			return false;
 		pc->kind = PIECE_QUADRIC;
+		pc->qmoving = p->qmoving;
 		identity_weights(pc);
 		for (uint32_t k = 0; k < 4; k++)
 			pc->vtx[k] = pc->vary[k] = pc->fvary[k] = k;
@@ -1426,7 +1481,8 @@ bool reyes_prim_pieces(const struct reyes_prim *p, struct reyes_patch **out, siz
 	size_t count = 0;
 	struct poly_mesh *m = NULL;
 	uint32_t ncu = 0, ncv = 0;
-	struct quadric q;
+	struct quadric q[2];
+	int shape;
 	switch (p->kind) {
 	case REYES_POLYGONS: {
 		const char *why;
@@ -1460,7 +1516,7 @@ bool reyes_prim_pieces(const struct reyes_prim *p, struct reyes_patch **out, siz
 		count = (size_t)ncu * ncv;
 		break;
 	default:
-		count = quadric_setup(p, &q) ? 1 : 0;
+		count = quadric_setup(p, q, &shape) ? 1 : 0;
 		break;
 	}
 	if (*n + count > *cap) {
@@ -1515,7 +1571,7 @@ void reyes_patch_bound(const struct reyes_patch *pa, int t, float lo[3], float h
 	double u0 = pa->u0, u1 = pa->u1, v0 = pa->v0, v1 = pa->v1;
 	const float *vals = pc.P[t ? 1 : 0];
 	if (pc.kind == PIECE_QUADRIC) {
-		quadric_bound(&pc.q, u0, u1, v0, v1, blo, bhi);
+		quadric_bound(&pc.q[t ? 1 : 0], u0, u1, v0, v1, blo, bhi);
 	} else if (pc.kind == PIECE_BILINEAR) {
 		/* A bilinear patch lies in the hull of its corners. */
 		double Q[4][3], P[3], ds[3], dt[3];
@@ -1546,6 +1602,11 @@ void reyes_patch_bound(const struct reyes_patch *pa, int t, float lo[3], float h
 						P[c] += mv[j * 4 + l] * H[l][i][c];
 				box_add(blo, bhi, P);
 			}
+	}
+	if (pc.height) {
+		/* The surface's x and y are u and v: the hull's z, the piece's (u, v) range. */
+		blo[0] = pc.uoff + pc.uscale * fmin(u0, u1), bhi[0] = pc.uoff + pc.uscale * fmax(u0, u1);
+		blo[1] = pc.voff + pc.vscale * fmin(v0, v1), bhi[1] = pc.voff + pc.vscale * fmax(v0, v1);
 	}
 	/* Pad for the rounding of diced points to float. */
 	double mag = 0.0;
@@ -1714,7 +1775,7 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 	struct dice d = { nu, nv, n, NULL, NULL, NULL, NULL };
 	d.s = malloc((size_t)(nu + nv) * sizeof(double));
 	d.wu = malloc((size_t)(nu + nv) * 8 * sizeof(double));
-	bool moving = pc.kind != PIECE_QUADRIC && pc.P[1] != pc.P[0];
+	bool moving = pc.kind == PIECE_QUADRIC ? pc.qmoving : pc.P[1] != pc.P[0];
 	g->P[0] = alloc_floats(3 * (size_t)n, &failed);
 	g->P[1] = moving ? alloc_floats(3 * (size_t)n, &failed) : g->P[0];
 	g->dPdu = alloc_floats(3 * (size_t)n, &failed);
@@ -1754,18 +1815,38 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 			uint32_t k = j * nu + i;
 			double P[3], du[3], dv[3], N[3];
 			if (pc.kind == PIECE_QUADRIC) {
-				quadric_eval(&pc.q, d.s[i], d.t[j], P, du, dv);
-				quadric_normal(&pc.q, d.t[j], du, dv, N);
+				/* Derivatives and normal from the sample with area. */
+				double P1[3] = { 0.0, 0.0, 0.0 };
+				quadric_eval(&pc.q[pc.qshape], d.s[i], d.t[j], P, du, dv);
+				quadric_normal(&pc.q[pc.qshape], d.t[j], du, dv, N);
+				if (pc.qshape) {
+					double a[3], b[3];
+					memcpy(P1, P, sizeof(P1));
+					quadric_eval(&pc.q[0], d.s[i], d.t[j], P, a, b);
+				} else if (moving) {
+					double a[3], b[3];
+					quadric_eval(&pc.q[1], d.s[i], d.t[j], P1, a, b);
+				}
+				if (moving)
+					for (int c = 0; c < 3; c++)
+						g->P[1][c * n + k] = sl_to_float(P1[c]);
 			} else {
 				piece_eval(&pc, Q[0], pc.P[0], d.s[i], d.t[j], P, du, dv);
 				for (int c = 0; c < 3; c++)
 					du[c] *= ku, dv[c] *= kv;
+				double uu = pc.uoff + pc.uscale * d.s[i], vv = pc.voff + pc.vscale * d.t[j];
+				if (pc.height) {
+					P[0] = uu, P[1] = vv;
+					du[0] = 1.0, du[1] = 0.0, dv[0] = 0.0, dv[1] = 1.0;
+				}
 				v3_cross(N, du, dv);
 				maxu = fmax(maxu, v3_len(du));
 				maxv = fmax(maxv, v3_len(dv));
 				if (moving) {
 					double P1[3], a[3], b[3];
 					piece_eval(&pc, Q[1], pc.P[1], d.s[i], d.t[j], P1, a, b);
+					if (pc.height)
+						P1[0] = uu, P1[1] = vv;
 					for (int c = 0; c < 3; c++)
 						g->P[1][c * n + k] = sl_to_float(P1[c]);
 				}
@@ -1785,7 +1866,7 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 	 * points) dPdu ^ dPdv vanishes: take the normal a little way in towards
 	 * the middle of the piece instead, its limit.
 	 */
-	if (pc.kind != PIECE_QUADRIC && maxu > 0.0 && maxv > 0.0) {
+	if (pc.kind != PIECE_QUADRIC && !pc.height && maxu > 0.0 && maxv > 0.0) {
 		for (uint32_t j = 0; j < nv; j++)
 			for (uint32_t i = 0; i < nu; i++) {
 				uint32_t k = j * nu + i;

@@ -29,6 +29,9 @@ struct reyes_patch {
 bool reyes_prim_pieces(const struct reyes_prim *p, struct reyes_patch **out, size_t *n,
 		       size_t *cap);
 
+/** Does @p deform over the shutter (positions or quadric parameters given at close)? */
+bool reyes_prim_deforms(const struct reyes_prim *p);
+
 /**
  * A conservative object-space bounding box of @pa at shutter time index @t
  * (0: open, 1: close; the same when the primitive does not deform).

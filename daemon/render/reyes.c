@@ -342,8 +342,7 @@ static enum bound_result piece_bound(const struct render *r, const struct reyes_
 					break;
 			}
 		}
-		const struct reyes_primvar *P = reyes_prim_var(pa->prim, "P");
-		if (!a->moving && (!P || !P->values1))
+		if (!a->moving && !reyes_prim_deforms(pa->prim))
 			break;
 	}
 	*zmin_out = zmin;

@@ -1979,6 +1979,52 @@ static void req_make_shadow(struct ri *ri, const struct rib_request *r)
 		reyes_ri_err(ri, r->loc, "MakeShadow '%s' -> '%s' failed", pic, tex);
 }
 
+/* MakeLatLongEnvironment picturename texturename filter swidth twidth */
+static void req_make_latlong(struct ri *ri, const struct rib_request *r)
+{
+	const char *pic, *tex, *filter;
+	float w[2];
+	if (!reyes_ri_str_arg(ri, r, 0, &pic) || !reyes_ri_str_arg(ri, r, 1, &tex) ||
+	    !reyes_ri_str_arg(ri, r, 2, &filter) || !reyes_ri_float_args(ri, r, 3, 2, w))
+		return;
+	for (uint32_t i = 0; i < r->nparams; i++)
+		reyes_ri_warn(ri, r->params[i].loc, "%s: parameter '%s' ignored", r->name,
+			      r->params[i].token);
+	forward_reader_diag(ri);
+	if (ri->opts->check_only)
+		return;
+	if (!reyes_make_latlong_environment(pic, tex, filter, w[0], w[1], ri->diag))
+		reyes_ri_err(ri, r->loc, "%s '%s' -> '%s' failed", r->name, pic, tex);
+}
+
+/* MakeCubeFaceEnvironment px nx py ny pz nz texturename fov filter swidth twidth */
+static void req_make_cubeface(struct ri *ri, const struct rib_request *r)
+{
+	const char *faces[6], *tex, *filter;
+	float fov, w[2];
+	for (uint32_t k = 0; k < 6; k++)
+		if (!reyes_ri_str_arg(ri, r, k, &faces[k]))
+			return;
+	if (!reyes_ri_str_arg(ri, r, 6, &tex) || !reyes_ri_float_args(ri, r, 7, 1, &fov) ||
+	    !reyes_ri_str_arg(ri, r, 8, &filter) || !reyes_ri_float_args(ri, r, 9, 2, w))
+		return;
+	if (!(fov >= 1.0f && fov < 180.0f))
+		FAIL(ri, r->loc, "%s: field of view %g out of range (1 to 180 degrees)", r->name,
+		     (double)fov);
+	if (fov < 90.0f)
+		reyes_ri_warn(ri, r->loc, "%s: a field of view of %g degrees leaves the cube's "
+			      "edges uncovered (the faces' edge texels are stretched there)",
+			      r->name, (double)fov);
+	for (uint32_t i = 0; i < r->nparams; i++)
+		reyes_ri_warn(ri, r->params[i].loc, "%s: parameter '%s' ignored", r->name,
+			      r->params[i].token);
+	forward_reader_diag(ri);
+	if (ri->opts->check_only)
+		return;
+	if (!reyes_make_cube_environment(faces, tex, fov, filter, w[0], w[1], ri->diag))
+		reyes_ri_err(ri, r->loc, "%s -> '%s' failed", r->name, tex);
+}
+
 static void req_ignore(struct ri *ri, const struct rib_request *r)
 {
 	(void)ri;
@@ -2140,6 +2186,8 @@ static const struct handler handlers[] = {
 	{"ReadArchive", req_read_archive, 0},
 	{"MakeTexture", req_make_texture, 0},
 	{"MakeShadow", req_make_shadow, 0},
+	{"MakeLatLongEnvironment", req_make_latlong, 0},
+	{"MakeCubeFaceEnvironment", req_make_cubeface, 0},
 	{"Sphere", reyes_ri_req_quadric, F_MOTION},
 	{"Cylinder", reyes_ri_req_quadric, F_MOTION},
 	{"Cone", reyes_ri_req_quadric, F_MOTION},

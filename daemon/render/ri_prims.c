@@ -217,6 +217,7 @@ static const struct {
 } std_vars[] = {
 	{"P", {.cls = REYES_VERTEX, .type = SL_TYPE_POINT}},
 	{"Pw", {.cls = REYES_VERTEX, .type = SL_TYPE_POINT, .hpoint = true}},
+	{"Pz", {.cls = REYES_VERTEX, .type = SL_TYPE_FLOAT}},
 	{"N", {.cls = REYES_VARYING, .type = SL_TYPE_NORMAL}},
 	{"Cs", {.cls = REYES_VARYING, .type = SL_TYPE_COLOR}},
 	{"Os", {.cls = REYES_VARYING, .type = SL_TYPE_COLOR}},
@@ -256,8 +257,17 @@ static uint32_t decl_ncomp(const struct decl *d)
 	return c * (d->arraylen ? d->arraylen : 1);
 }
 
-/* The number of points "P" (or "Pw") gives; false (reported) when missing or uneven. */
-static bool point_count(struct ri *ri, const struct rib_request *r, uint32_t *np)
+/* Is @name a position: "P", "Pw", or (a height field's) "Pz"? */
+static bool is_position(const char *name)
+{
+	return strcmp(name, "P") == 0 || strcmp(name, "Pw") == 0 || strcmp(name, "Pz") == 0;
+}
+
+/*
+ * The number of points "P" (or "Pw", or with @height_ok "Pz") gives; false
+ * (reported) when missing or uneven.
+ */
+static bool point_count(struct ri *ri, const struct rib_request *r, bool height_ok, uint32_t *np)
 {
 	for (uint32_t i = 0; i < r->nparams; i++) {
 		const struct rib_param *p = &r->params[i];
@@ -265,13 +275,20 @@ static bool point_count(struct ri *ri, const struct rib_request *r, uint32_t *np
 		const char *name;
 		if (!var_decl(ri, r, p, &d, &name))
 			return false;
-		if (strcmp(name, "P") != 0 && strcmp(name, "Pw") != 0)
+		if (!is_position(name))
 			continue;
+		bool pz = strcmp(name, "Pz") == 0;
+		if (pz && !height_ok) {
+			reyes_ri_err(ri, p->loc, "%s does not take \"Pz\" (only Patch and PatchMesh "
+				     "are height fields)", r->name);
+			return false;
+		}
 		uint32_t c = decl_ncomp(&d);
-		if (d.cls != REYES_VERTEX || d.type != SL_TYPE_POINT || d.arraylen ||
-		    (strcmp(name, "Pw") == 0) != d.hpoint) {
+		bool want_type = pz ? d.type == SL_TYPE_FLOAT && !d.hpoint
+				    : d.type == SL_TYPE_POINT && (strcmp(name, "Pw") == 0) == d.hpoint;
+		if (d.cls != REYES_VERTEX || !want_type || d.arraylen) {
 			reyes_ri_err(ri, p->loc, "%s: \"%s\" must be a vertex %s", r->name, name,
-				     d.hpoint ? "hpoint" : "point");
+				     pz ? "float" : strcmp(name, "Pw") == 0 ? "hpoint" : "point");
 			return false;
 		}
 		if (!reyes_ri_is_numbers(&p->value) || p->value.n % c) {
@@ -313,7 +330,7 @@ static bool prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t
 				      r->name, name);
 			continue;
 		}
-		bool is_P = strcmp(name, "P") == 0 || strcmp(name, "Pw") == 0;
+		bool is_P = is_position(name);
 		if (is_P && !points) {
 			reyes_ri_err(ri, par->loc, "%s does not take \"%s\"", r->name, name);
 			return false;
@@ -349,6 +366,17 @@ static bool prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t
 			}
 			if (strcmp(name, "Pw") == 0)
 				name = "P";
+		}
+		if (is_P && strcmp(name, "Pz") == 0) {
+			/* A height field: "P" with z from "Pz"; x and y are the surface's u
+			   and v (RISpec), which the geometry puts in when it dices. */
+			float *f3 = rl_arena_alloc(a, sizeof(float) * 3 * (count ? count : 1));
+			for (uint32_t k = 0; k < count; k++)
+				f3[3 * k + 2] = f[k];
+			f = f3;
+			name = "P";
+			d.type = SL_TYPE_POINT;
+			p->heightfield = true;
 		}
 		/* The standard variables keep their standard types. */
 		const char *std_type = NULL;
@@ -533,7 +561,7 @@ void reyes_ri_req_polygon(struct ri *ri, const struct rib_request *r)
 	if (!geometry_ok(ri, r))
 		return;
 	uint32_t np;
-	if (!point_count(ri, r, &np))
+	if (!point_count(ri, r, false, &np))
 		return;
 	if (np < 3)
 		FAIL(ri, r->loc, "Polygon has %u points (at least 3)", np);
@@ -563,7 +591,7 @@ void reyes_ri_req_general_polygon(struct ri *ri, const struct rib_request *r)
 	if (nv->n == 0)
 		FAIL(ri, r->loc, "GeneralPolygon has no loops");
 	uint32_t np;
-	if (!point_count(ri, r, &np))
+	if (!point_count(ri, r, false, &np))
 		return;
 	if (sum != np)
 		FAIL(ri, r->loc, "GeneralPolygon: the loops have %llu vertices, \"P\" has %u",
@@ -614,7 +642,7 @@ void reyes_ri_req_points_polygons(struct ri *ri, const struct rib_request *r)
 			   r->name, general ? "loops" : "polygons",
 			   (unsigned long long)nverts_sum, vv->n);
 	uint32_t np;
-	if (!point_count(ri, r, &np))
+	if (!point_count(ri, r, false, &np))
 		return;
 	verts = uint_values(ri, vv, r->name, "vertex", UINT32_MAX);
 	if (!verts)
@@ -712,7 +740,7 @@ void reyes_ri_req_patch(struct ri *ri, const struct rib_request *r)
 		FAIL(ri, r->loc, "Patch type must be \"bilinear\" or \"bicubic\", got '%s'",
 			   type);
 	uint32_t np, want = bicubic ? 16 : 4;
-	if (!point_count(ri, r, &np))
+	if (!point_count(ri, r, true, &np))
 		return;
 	if (np != want)
 		FAIL(ri, r->loc, "a %s Patch has %u points, got %u", type, want, np);
@@ -736,6 +764,25 @@ static uint32_t mesh_patches(bool bicubic, bool periodic, uint32_t n, uint32_t s
 	return n >= 4 && (n - 4) % step == 0 ? (n - 4) / step + 1 : 0;
 }
 
+/*
+ * A PatchMesh wrap mode: "periodic" (*periodic true) or "nonperiodic".
+ * "nowrap", a name some exporters write for the latter, is taken as it
+ * with a warning. False (reported) for anything else.
+ */
+static bool wrap_mode(struct ri *ri, const struct rib_request *r, const char *w, bool *periodic)
+{
+	*periodic = strcmp(w, "periodic") == 0;
+	if (*periodic || strcmp(w, "nonperiodic") == 0)
+		return true;
+	if (strcmp(w, "nowrap") == 0) {
+		reyes_ri_warn(ri, r->loc, "PatchMesh wrap mode \"nowrap\" taken as \"nonperiodic\"");
+		return true;
+	}
+	reyes_ri_err(ri, r->loc,
+		     "PatchMesh wrap modes must be \"periodic\" or \"nonperiodic\", got '%s'", w);
+	return false;
+}
+
 void reyes_ri_req_patch_mesh(struct ri *ri, const struct rib_request *r)
 {
 	const char *type, *uwrap, *vwrap;
@@ -748,11 +795,9 @@ void reyes_ri_req_patch_mesh(struct ri *ri, const struct rib_request *r)
 	if (!bicubic && strcmp(type, "bilinear") != 0)
 		FAIL(ri, r->loc,
 			   "PatchMesh type must be \"bilinear\" or \"bicubic\", got '%s'", type);
-	bool up = strcmp(uwrap, "periodic") == 0, vp = strcmp(vwrap, "periodic") == 0;
-	if ((!up && strcmp(uwrap, "nonperiodic") != 0) || (!vp && strcmp(vwrap, "nonperiodic") != 0))
-		FAIL(ri, r->loc,
-			   "PatchMesh wrap modes must be \"periodic\" or \"nonperiodic\", got '%s' "
-			   "and '%s'", uwrap, vwrap);
+	bool up, vp;
+	if (!wrap_mode(ri, r, uwrap, &up) || !wrap_mode(ri, r, vwrap, &vp))
+		return;
 	if (!(nu >= 1 && nu <= UINT32_MAX && nv >= 1 && nv <= UINT32_MAX))
 		FAIL(ri, r->loc, "PatchMesh: bad size %g x %g", nu, nv);
 	uint32_t ustep = ri->gs.a.ustep, vstep = ri->gs.a.vstep;
@@ -766,7 +811,7 @@ void reyes_ri_req_patch_mesh(struct ri *ri, const struct rib_request *r)
 		FAIL(ri, r->loc, "PatchMesh: %g x %g points are too few", nu, nv);
 	}
 	uint32_t np;
-	if (!point_count(ri, r, &np))
+	if (!point_count(ri, r, true, &np))
 		return;
 	if ((uint64_t)nu * (uint64_t)nv != np)
 		FAIL(ri, r->loc, "PatchMesh: %g x %g points, but \"P\" has %u", nu, nv, np);
@@ -881,18 +926,17 @@ static const char *topology_mismatch(const struct reyes_prim *a, const struct re
 {
 	if (a->kind != b->kind)
 		return "kind";
-	if (a->kind < REYES_POLYGONS) {
-		if (memcmp(a->q, b->q, sizeof(a->q)) != 0)
-			return "quadric parameters (they cannot move)";
-	} else if (a->kind == REYES_POLYGONS) {
+	if (a->kind == REYES_POLYGONS) {
 		if (a->nfaces != b->nfaces || !same_u32(a->nloops, b->nloops, a->nfaces))
 			return "polygons";
 		uint32_t nl = sum_u32(a->nloops, a->nfaces);
 		if (!same_u32(a->nverts, b->nverts, nl) ||
 		    !same_u32(a->verts, b->verts, sum_u32(a->nverts, nl)))
 			return "polygons";
-	} else if (a->bicubic != b->bicubic || a->nu != b->nu || a->nv != b->nv ||
-		   a->uperiodic != b->uperiodic || a->vperiodic != b->vperiodic) {
+	} else if (a->kind == REYES_PATCHES &&
+		   (a->bicubic != b->bicubic || a->nu != b->nu || a->nv != b->nv ||
+		    a->uperiodic != b->uperiodic || a->vperiodic != b->vperiodic ||
+		    a->heightfield != b->heightfield)) {
 		return "patch mesh";
 	}
 	if (a->npoints != b->npoints)
@@ -952,6 +996,11 @@ void reyes_ri_motion_end(struct ri *ri, bool apply)
 	struct reyes_prim *p = m.prim[0];
 	if (m.nsamples == 2) {
 		const struct reyes_prim *q = m.prim[1];
+		/* A quadric deforms through its parameters (a sphere's radius grows). */
+		if (p->kind < REYES_POLYGONS && memcmp(p->q, q->q, sizeof(p->q)) != 0) {
+			memcpy(p->q1, q->q, sizeof(p->q1));
+			p->qmoving = true;
+		}
 		struct reyes_primvar *vars = (struct reyes_primvar *)p->vars;
 		for (uint32_t i = 0; i < p->nvars; i++) {
 			size_t nf = (size_t)vars[i].count *

@@ -142,6 +142,8 @@ struct reyes_prim {
 	const struct reyes_attrs *attrs;
 	uint32_t id;                          /* order of declaration */
 	float q[8];                           /* quadric parameters (angles in degrees, as in RIB) */
+	float q1[8];                          /* at shutter close (a deforming quadric), if qmoving */
+	bool qmoving;                         /* q1 differs from q */
 
 	/* REYES_POLYGONS: faces made of loops (the first is the outline, others holes). */
 	uint32_t nfaces;
@@ -155,6 +157,9 @@ struct reyes_prim {
 	bool uperiodic, vperiodic;
 	float ubasis[16], vbasis[16];         /* bicubic bases (rows: coefficients of t^3..1) */
 	uint32_t ustep, vstep;
+	/* A height field ("Pz"): the surface's x and y are its u and v over the
+	   whole mesh, z is "P"'s z through the basis (P's x and y are unused). */
+	bool heightfield;
 
 	uint32_t npoints;                     /* vertex positions ("P" count) */
 	const struct reyes_primvar *vars;     /* "P" is always present (vertex point) */

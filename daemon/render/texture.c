@@ -17,6 +17,11 @@
  *    defines them, +z up: direction (x, y, z) has longitude atan2(y, x)
  *    (s = longitude / 2pi, 0 at the left) and latitude asin(z) (t = 0 at
  *    the north pole +z, 1 at the south pole).
+ *  - environment() on a cube map (RiMakeCubeFaceEnvironment): the six
+ *    faces stacked top to bottom in the order px nx py ny pz nz, as
+ *    OpenEXR's "envmap" cube layout has them, each face a picture as a
+ *    left-handed camera at the origin renders it looking along the face's
+ *    axis with the map's "fov" (see dir_to_cube).
  *  - shadow(): the map's worldToNDC takes world points to RenderMan NDC
  *    ((0,0) top left, (1,1) bottom right, after the homogeneous divide), its
  *    worldToCamera to the light's camera space, where "Z" is the depth z.
@@ -191,6 +196,171 @@ bool reyes_make_texture(const char *in, const char *out, const char *swrap, cons
 		ok = reyes_exr_write(out, f.levels, f.nlevels, &o, diag);
 	}
 	reyes_exr_file_finish(&f);
+	return ok;
+}
+
+/* Face f of a cube map level: face size, 0 when the level is too small for six. */
+static uint32_t cube_face_size(const struct reyes_image *lv)
+{
+	if (lv->height < 6)
+		return 0;
+	return lv->width < lv->height / 6 ? lv->width : lv->height / 6;
+}
+
+/*
+ * Replace f->levels (one level, the six faces stacked) by the pyramid of a
+ * cube map: each face halved on its own, so that no filter reaches across
+ * into the next face of the stack. Levels too small to hold six faces are
+ * plain halvings (no lookup reads them; they make the file a whole mip-map).
+ */
+static bool cube_pyramid(struct reyes_exr_file *f)
+{
+	uint32_t n = level_count(f->levels[0].width, f->levels[0].height);
+	struct reyes_image *lv = calloc(n, sizeof(*lv));
+	if (!lv)
+		return false;
+	lv[0] = f->levels[0];
+	free(f->levels);
+	f->levels = lv;
+	f->nlevels = 1;
+	for (uint32_t l = 1; l < n; l++) {
+		const struct reyes_image *src = &lv[l - 1];
+		uint32_t sf = cube_face_size(src), w = src->width, h = src->height;
+		uint32_t dw = w > 1 ? w / 2 : 1, dh = h > 1 ? h / 2 : 1, nch = src->nchannels;
+		if (sf < 2 || dh < 6) {
+			if (!downsample(src, &lv[l]))
+				return false;
+			f->nlevels = l + 1;
+			continue;
+		}
+		if (!reyes_image_init(&lv[l], dw, dh, nch, src->channel_names))
+			return false;
+		f->nlevels = l + 1;
+		uint32_t df = cube_face_size(&lv[l]);
+		for (uint32_t face = 0; face < 6; face++) {
+			struct reyes_image a, b;
+			if (!reyes_image_init(&a, sf, sf, nch, src->channel_names))
+				return false;
+			for (uint32_t y = 0; y < sf; y++)
+				memcpy(a.data + (size_t)y * sf * nch,
+				       src->data + ((size_t)(face * sf + y) * w) * nch,
+				       (size_t)sf * nch * sizeof(float));
+			bool ok = downsample(&a, &b);
+			reyes_image_finish(&a);
+			if (!ok)
+				return false;
+			uint32_t cw = b.width < df ? b.width : df, ch = b.height < df ? b.height : df;
+			for (uint32_t y = 0; y < ch; y++)
+				memcpy(lv[l].data + ((size_t)(face * df + y) * dw) * nch,
+				       b.data + (size_t)y * b.width * nch, (size_t)cw * nch * sizeof(float));
+			reyes_image_finish(&b);
+		}
+	}
+	return true;
+}
+
+static void make_params(char *buf, size_t n, const char *filter, float swidth, float twidth)
+{
+	snprintf(buf, n, "filter=%s swidth=%g twidth=%g", filter && filter[0] ? filter : "box",
+		 (double)sl_finite(swidth), (double)sl_finite(twidth));
+}
+
+bool reyes_make_latlong_environment(const char *in, const char *out, const char *filter,
+				    float swidth, float twidth, FILE *diag)
+{
+	FILE *d = diag ? diag : stderr;
+	const char *oname = out && out[0] ? out : "(no name)";
+	struct reyes_exr_file f;
+	if (!reyes_exr_read(in, false, &f, diag))
+		return false;
+	bool ok = build_pyramid(&f);
+	if (!ok) {
+		fprintf(d, "%s: error: out of memory making the environment map\n", oname);
+	} else {
+		char params[160];
+		make_params(params, sizeof(params), filter, swidth, twidth);
+		const char *attrs[] = { "makelatlongenvironment", params };
+		struct reyes_exr_write_opts o = {
+			.half = f.half, .mipmap = true, .wrapmodes = "periodic,clamp",
+			.strattrs = attrs, .nstrattrs = 1, .envmap = REYES_ENVMAP_LATLONG,
+		};
+		ok = reyes_exr_write(out, f.levels, f.nlevels, &o, diag);
+	}
+	reyes_exr_file_finish(&f);
+	return ok;
+}
+
+bool reyes_make_cube_environment(const char *const faces[6], const char *out, float fov,
+				 const char *filter, float swidth, float twidth, FILE *diag)
+{
+	static const char *const face_names[6] = { "px", "nx", "py", "ny", "pz", "nz" };
+	FILE *d = diag ? diag : stderr;
+	const char *oname = out && out[0] ? out : "(no name)";
+	if (!(fov >= 1.0f && fov < 180.0f)) {
+		fprintf(d, "%s: error: cube face field of view %g out of range (1 to 180 degrees)\n",
+			oname, (double)fov);
+		return false;
+	}
+	struct reyes_exr_file f[6];
+	memset(f, 0, sizeof(f));
+	struct reyes_exr_file cube = { 0 };
+	bool ok = true;
+	for (int k = 0; k < 6 && ok; k++)
+		ok = reyes_exr_read(faces[k], false, &f[k], diag);
+	const struct reyes_image *f0 = ok ? &f[0].levels[0] : NULL;
+	for (int k = 0; k < 6 && ok; k++) {
+		const struct reyes_image *im = &f[k].levels[0];
+		bool same = im->nchannels == f0->nchannels;
+		for (uint32_t c = 0; same && c < im->nchannels; c++)
+			same = !strcmp(im->channel_names[c], f0->channel_names[c]);
+		if (im->width != im->height || im->width != f0->width) {
+			fprintf(d, "%s: error: cube face %s (%s) is %ux%u: the faces must be square "
+				"and all of one size (%s is %ux%u)\n", oname, face_names[k], faces[k],
+				im->width, im->height, faces[0], f0->width, f0->height);
+			ok = false;
+		} else if (!same) {
+			fprintf(d, "%s: error: cube face %s (%s) has other channels than %s\n", oname,
+				face_names[k], faces[k], faces[0]);
+			ok = false;
+		}
+	}
+	if (ok && (uint64_t)f0->width * 6 > UINT32_MAX / 2) {
+		fprintf(d, "%s: error: cube faces too large\n", oname);
+		ok = false;
+	}
+	if (ok) {
+		/* The faces stacked top to bottom in the order px nx py ny pz nz. */
+		uint32_t w = f0->width, nch = f0->nchannels;
+		cube.levels = calloc(1, sizeof(*cube.levels));
+		ok = cube.levels && reyes_image_init(&cube.levels[0], w, 6 * w, nch,
+						     f0->channel_names);
+		if (ok) {
+			cube.nlevels = 1;
+			size_t face_floats = (size_t)w * w * nch;
+			for (int k = 0; k < 6; k++)
+				memcpy(cube.levels[0].data + k * face_floats, f[k].levels[0].data,
+				       face_floats * sizeof(float));
+			ok = cube_pyramid(&cube);
+		}
+		if (!ok)
+			fprintf(d, "%s: error: out of memory making the environment map\n", oname);
+	}
+	if (ok) {
+		char params[160];
+		make_params(params, sizeof(params), filter, swidth, twidth);
+		const char *attrs[] = { "makecubefaceenvironment", params };
+		bool half = true;
+		for (int k = 0; k < 6; k++)
+			half = half && f[k].half;
+		struct reyes_exr_write_opts o = {
+			.half = half, .mipmap = true, .strattrs = attrs, .nstrattrs = 1,
+			.envmap = REYES_ENVMAP_CUBE, .fov = fov,
+		};
+		ok = reyes_exr_write(out, cube.levels, cube.nlevels, &o, diag);
+	}
+	reyes_exr_file_finish(&cube);
+	for (int k = 0; k < 6; k++)
+		reyes_exr_file_finish(&f[k]);
 	return ok;
 }
 
@@ -447,6 +617,17 @@ static void load(const struct reyes_texsys *ts, struct tex *t)
 	}
 	/* A depth map only needs its one level; anything else gets a pyramid. */
 	bool depth_map = t->has_matrices && t->nch == 1 && t->zchan == 0;
+	if (f->cube && cube_face_size(&f->levels[0]) == 0) {
+		fprintf(ts->diag ? ts->diag : stderr,
+			"%s: error: a cube map %ux%u is too small for six faces\n", t->name,
+			f->levels[0].width, f->levels[0].height);
+		reyes_exr_file_finish(f);
+		return;
+	}
+	if (f->nlevels == 1 && f->cube && !cube_pyramid(f)) {
+		reyes_exr_file_finish(f);
+		return;
+	}
 	if (f->nlevels == 1 && !depth_map && !build_pyramid(f)) {
 		reyes_exr_file_finish(f);
 		return;
@@ -706,6 +887,117 @@ static bool dir_to_st(const double d[3], double *s, double *t)
 	return true;
 }
 
+/*
+ * A direction's cube face and its (s, t) on that face's picture, for faces
+ * rendered with field of view @fov_deg: px nx py ny pz nz are faces 0..5,
+ * each as a left-handed camera at the origin sees it looking along its
+ * axis (x right, y up on the picture): up is +y for the four faces around
+ * y, -z for py and +z for ny. *grow: how much an angle at the direction
+ * stretches on the face, d(s or t)/d(angle). False for a zero vector.
+ */
+static bool dir_to_cube(const double d[3], double fov_deg, int *face, double *s, double *t,
+			double *grow_s, double *grow_t)
+{
+	double ax = fabs(d[0]), ay = fabs(d[1]), az = fabs(d[2]);
+	double ma, sc, tc;
+	if (ax >= ay && ax >= az) {
+		*face = d[0] >= 0.0 ? 0 : 1;
+		ma = ax, sc = d[0] >= 0.0 ? -d[2] : d[2], tc = -d[1];
+	} else if (ay >= az) {
+		*face = d[1] >= 0.0 ? 2 : 3;
+		ma = ay, sc = d[0], tc = d[1] >= 0.0 ? d[2] : -d[2];
+	} else {
+		*face = d[2] >= 0.0 ? 4 : 5;
+		ma = az, sc = d[2] >= 0.0 ? d[0] : -d[0], tc = -d[1];
+	}
+	if (!(ma > 1e-30) || !isfinite(ma))
+		return false;
+	double a = sc / ma, b = tc / ma, k = 0.5 / tan(0.5 * fov_deg * PI / 180.0);
+	*s = 0.5 + k * a;
+	*t = 0.5 + k * b;
+	*grow_s = k * (1.0 + a * a);
+	*grow_t = k * (1.0 + b * b);
+	return true;
+}
+
+/* acc += @weight times the bilinear value at (s, t) of face @face, clamped to the face. */
+static void cube_bilinear(const struct reyes_image *lv, uint32_t fw, int face, double s,
+			  double t, uint32_t ch0, uint32_t nc, double weight, double *acc)
+{
+	double x = s * fw - 0.5, y = t * fw - 0.5;
+	x = x < 0.0 ? 0.0 : x > fw - 1.0 ? fw - 1.0 : x;
+	y = y < 0.0 ? 0.0 : y > fw - 1.0 ? fw - 1.0 : y;
+	uint32_t ix = (uint32_t)x, iy = (uint32_t)y;
+	double ax = x - ix, ay = y - iy;
+	uint32_t nch = lv->nchannels;
+	for (uint32_t dy = 0; dy < 2; dy++) {
+		double wy = dy ? ay : 1.0 - ay;
+		if (wy == 0.0)
+			continue;
+		uint32_t row = (uint32_t)face * fw + (iy + dy < fw ? iy + dy : fw - 1);
+		for (uint32_t dx = 0; dx < 2; dx++) {
+			double wx = dx ? ax : 1.0 - ax;
+			if (wx == 0.0)
+				continue;
+			uint32_t col = ix + dx < fw ? ix + dx : fw - 1;
+			const float *p = lv->data + ((size_t)row * lv->width + col) * nch + ch0;
+			double kk = weight * wx * wy;
+			for (uint32_t c = 0; c < nc; c++)
+				acc[c] += kk * p[c];
+		}
+	}
+}
+
+/* The average of bilinear samples over region @r of face @face on level @lv. */
+static void cube_filter_level(const struct reyes_image *lv, int face, const struct region *r,
+			      uint32_t ch0, uint32_t nc, double *acc)
+{
+	uint32_t fw = cube_face_size(lv);
+	double du = r->ds * fw, dv = r->dt * fw;
+	int nu = du > 1.0 ? (du < MAX_AXIS_SAMPLES ? (int)ceil(du) : MAX_AXIS_SAMPLES) : 1;
+	int nv = dv > 1.0 ? (dv < MAX_AXIS_SAMPLES ? (int)ceil(dv) : MAX_AXIS_SAMPLES) : 1;
+	double w = 1.0 / (nu * nv);
+	for (uint32_t c = 0; c < nc; c++)
+		acc[c] = 0.0;
+	for (int j = 0; j < nv; j++) {
+		double t = r->t + ((j + 0.5) / nv - 0.5) * r->dt;
+		for (int i = 0; i < nu; i++) {
+			double s = r->s + ((i + 0.5) / nu - 0.5) * r->ds;
+			cube_bilinear(lv, fw, face, s, t, ch0, nc, w, acc);
+		}
+	}
+}
+
+/*
+ * The filtered value of a cube map over region @r of face @face, trilinear
+ * between the two nearest levels that still hold six faces. The region does
+ * not reach into the neighbouring faces: a lookup near an edge filters what
+ * its own face has there (with a field of view over 90 degrees, the margin
+ * beyond the edge).
+ */
+static void cube_lookup(const struct tex *tx, int face, const struct region *r, uint32_t ch0,
+			uint32_t nc, double res[3])
+{
+	uint32_t fw0 = cube_face_size(&tx->f.levels[0]), top = 0;
+	while (top + 1 < tx->f.nlevels && cube_face_size(&tx->f.levels[top + 1]) > 0)
+		top++;
+	double fs = r->ds * fw0, ft = r->dt * fw0;
+	double fmin = fs < ft ? fs : ft, fmax = fs < ft ? ft : fs;
+	double f = fmin > fmax / MAX_ANISO ? fmin : fmax / MAX_ANISO;
+	double lod = f > 1.0 ? log2(f) : 0.0;
+	if (lod > top)
+		lod = top;
+	uint32_t la = (uint32_t)lod;
+	double frac = lod - la;
+	cube_filter_level(&tx->f.levels[la], face, r, ch0, nc, res);
+	if (frac > 0.0 && la + 1 <= top) {
+		double b[3];
+		cube_filter_level(&tx->f.levels[la + 1], face, r, ch0, nc, b);
+		for (uint32_t c = 0; c < nc; c++)
+			res[c] += frac * (b[c] - res[c]);
+	}
+}
+
 bool reyes_tex_environment(struct reyes_texsys *ts, const struct sl_tex_lookup *q)
 {
 	if (!lookup_valid(q))
@@ -753,6 +1045,22 @@ bool reyes_tex_environment(struct reyes_texsys *ts, const struct sl_tex_lookup *
 				continue;
 			double a = acos(dot < -1.0 ? -1.0 : dot > 1.0 ? 1.0 : dot);
 			spread = a > spread ? a : spread;
+		}
+		if (tx->f.cube) {
+			/* The angular diameter 2*spread, stretched as the face stretches it. */
+			int face;
+			double gs, gt;
+			if (dir_to_cube(c, tx->f.fov, &face, &s, &t, &gs, &gt)) {
+				struct region r = {
+					.s = s, .t = t,
+					.ds = clamp_region(2.0 * spread * gs * sw + sb),
+					.dt = clamp_region(2.0 * spread * gt * tw + tb),
+				};
+				if (avail)
+					cube_lookup(tx, face, &r, (uint32_t)q->channel, avail, res);
+			}
+			put_result(q, i, res, avail);
+			continue;
 		}
 		/* The angular diameter 2*spread, in t (pi per map) and in s (2pi at the equator). */
 		double sint = sin(t * PI);
@@ -961,7 +1269,8 @@ bool reyes_tex_info(struct reyes_texsys *ts, const char *name, const char *query
 		if (type != SL_TYPE_STRING || arraylen != 0 || !sout)
 			return false;
 		bool depth_map = tx->has_matrices && tx->nch == 1 && tx->zchan == 0;
-		sout[0] = depth_map ? "shadow" : tx->f.latlong ? "environment" : "texture";
+		sout[0] = depth_map ? "shadow" :
+			  tx->f.latlong || tx->f.cube ? "environment" : "texture";
 		return true;
 	}
 	bool view = !strcmp(query, "viewingmatrix");

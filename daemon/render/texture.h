@@ -52,6 +52,24 @@ bool reyes_image_read_exr(const char *path, struct reyes_image *im, FILE *diag);
 bool reyes_make_texture(const char *in, const char *out, const char *swrap, const char *twrap,
 			const char *filter, float swidth, float twidth, FILE *diag);
 
+/**
+ * MakeLatLongEnvironment: a latitude-longitude picture @in as an
+ * environment map @out (a tiled, mip-mapped OpenEXR with "envmap"
+ * latlong, periodic in s and clamped in t). Errors on @diag (NULL: stderr).
+ */
+bool reyes_make_latlong_environment(const char *in, const char *out, const char *filter,
+				    float swidth, float twidth, FILE *diag);
+
+/**
+ * MakeCubeFaceEnvironment: six square pictures of one size, @faces in the
+ * order px nx py ny pz nz, rendered with field of view @fov degrees (90:
+ * the faces just meet), as one cube environment map @out (a tiled,
+ * mip-mapped OpenEXR with "envmap" cube and a "fov" attribute; the faces
+ * stacked in that order). Errors on @diag (NULL: stderr).
+ */
+bool reyes_make_cube_environment(const char *const faces[6], const char *out, float fov,
+				 const char *filter, float swidth, float twidth, FILE *diag);
+
 /** MakeShadow: @in is a depth image with matrices (a zfile or shadow display's output). */
 bool reyes_make_shadow(const char *in, const char *out, FILE *diag);
 
