@@ -364,8 +364,10 @@ static enum bound_result piece_bound(const struct render *r, const struct reyes_
 }
 
 /*
- * Raster lengths of a piece along u and v, from a TxT test dice at shutter
- * open: the longest row and the longest column. Chords of a coarse test grid
+ * Raster lengths of a piece along u and v, from a TxT test dice: the longest
+ * row and the longest column, at shutter open, and for a deforming
+ * primitive the longer of open and close (a sphere growing threefold over
+ * the shutter is diced for its size at close). Chords of a coarse test grid
  * underestimate curved edges (a 3x3 grid sees a full circle as two
  * diameters), so the test grid is fine enough to follow curvature.
  */
@@ -377,32 +379,35 @@ static bool piece_extent(const struct render *r, const struct reyes_patch *pa, f
 	struct reyes_grid g = { 0 };
 	if (!reyes_patch_dice(pa, T, T, &g))
 		return false;
-	float m[16];
-	obj_to_camera(r, pa->prim->attrs, 0, m);
-	float rx[TT], ry[TT];
+	int times = reyes_prim_deforms(pa->prim) ? 2 : 1;
+	float mu = 0, mv = 0;
 	bool ok = true;
-	for (int k = 0; k < TT; k++) {
-		float p[3] = { g.P[0][k], g.P[0][TT + k], g.P[0][2 * TT + k] }, c[3];
-		sl_xform_point(c, m, p);
-		if (!to_raster(&r->cam, c[0], c[1], c[2], &rx[k], &ry[k]))
-			ok = false;
+	for (int t = 0; t < times && ok; t++) {
+		float m[16];
+		obj_to_camera(r, pa->prim->attrs, t, m);
+		float rx[TT], ry[TT];
+		for (int k = 0; k < TT; k++) {
+			float p[3] = { g.P[t][k], g.P[t][TT + k], g.P[t][2 * TT + k] }, c[3];
+			sl_xform_point(c, m, p);
+			if (!to_raster(&r->cam, c[0], c[1], c[2], &rx[k], &ry[k]))
+				ok = false;
+		}
+		for (int j = 0; j < T && ok; j++) {
+			float su = 0, sv = 0;
+			for (int i = 0; i + 1 < T; i++) {
+				int a = j * T + i, b = a + 1;
+				su += hypotf(rx[b] - rx[a], ry[b] - ry[a]);
+				a = i * T + j;
+				b = a + T;
+				sv += hypotf(rx[b] - rx[a], ry[b] - ry[a]);
+			}
+			mu = fmaxf(mu, su);
+			mv = fmaxf(mv, sv);
+		}
 	}
 	reyes_grid_finish(&g);
 	if (!ok)
 		return false;
-	float mu = 0, mv = 0;
-	for (int j = 0; j < T; j++) {
-		float su = 0, sv = 0;
-		for (int i = 0; i + 1 < T; i++) {
-			int a = j * T + i, b = a + 1;
-			su += hypotf(rx[b] - rx[a], ry[b] - ry[a]);
-			a = i * T + j;
-			b = a + T;
-			sv += hypotf(rx[b] - rx[a], ry[b] - ry[a]);
-		}
-		mu = fmaxf(mu, su);
-		mv = fmaxf(mv, sv);
-	}
 	*lu = mu;
 	*lv = mv;
 	return true;

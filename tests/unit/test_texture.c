@@ -913,6 +913,165 @@ static void test_environment(void)
 	reyes_texsys_destroy(ts);
 }
 
+/* A @w x @w picture of constant colour @rgb, or (@ramp) with R = s at each texel centre. */
+static void write_face(const char *path, uint32_t w, const float rgb[3], bool ramp)
+{
+	static const char *const names[] = { "R", "G", "B" };
+	struct reyes_image im;
+	CHECK(reyes_image_init(&im, w, w, 3, names));
+	for (uint32_t y = 0; y < w; y++)
+		for (uint32_t x = 0; x < w; x++)
+			for (int c = 0; c < 3; c++)
+				im.data[(y * w + x) * 3 + (uint32_t)c] =
+					ramp && c == 0 ? (x + 0.5f) / (float)w : rgb[c];
+	CHECK(reyes_image_write_exr(path, &im, false, NULL));
+	reyes_image_finish(&im);
+}
+
+/* One environment() lookup of direction @d (a point lookup: all corners equal) into rgb. */
+static bool env_at(struct reyes_texsys *ts, const char *name, const double d[3], float rgb[3])
+{
+	struct lookup l;
+	lookup_init(&l, name, 0, 3, 1);
+	for (int k = 0; k < 4; k++)
+		for (int a = 0; a < 3; a++)
+			l.d[k][a * NPTS] = (float)d[a];
+	if (!reyes_tex_environment(ts, &l.q))
+		return false;
+	for (int c = 0; c < 3; c++)
+		rgb[c] = l.out[c * NPTS];
+	return true;
+}
+
+/*
+ * MakeCubeFaceEnvironment from six constant faces (px red, nx green, py
+ * blue, ny yellow, pz magenta, nz cyan): every direction gets the colour of
+ * the face its largest component points at, exactly (a constant face
+ * filters to itself; the lookup never reaches into another face). Then
+ * the field of view: px a ramp R = s, the map made with fov 120 degrees;
+ * a direction at angle a from +x towards -z (the face's right) lands at
+ * s = 1/2 + tan(a) / (2 tan 60), within 1e-3 (a linear ramp filters to its
+ * value; 90 degrees would give 1/2 + tan(a) / 2).
+ */
+static void test_cube_environment(void)
+{
+	static const float colours[6][3] = { { 1, 0, 0 }, { 0, 1, 0 }, { 0, 0, 1 },
+					      { 1, 1, 0 }, { 1, 0, 1 }, { 0, 1, 1 } };
+	static const char *const fnames[6] = { "px.exr", "nx.exr", "py.exr", "ny.exr", "pz.exr",
+						"nz.exr" };
+	char paths[6][256];
+	const char *faces[6];
+	for (int k = 0; k < 6; k++) {
+		snprintf(paths[k], sizeof(paths[k]), "%s", tmp_path(fnames[k]));
+		write_face(paths[k], 16, colours[k], false);
+		faces[k] = paths[k];
+	}
+	CHECK(reyes_make_cube_environment(faces, tmp_path("cube.env"), 90, "box", 1, 1, NULL));
+	struct reyes_texsys *ts = reyes_texsys_create(dir, NULL, NULL);
+	const char *type = NULL;
+	CHECK(reyes_tex_info(ts, "cube.env", "type", SL_TYPE_STRING, 0, NULL, &type));
+	CHECK(type && !strcmp(type, "environment"));
+	/* Directions on a grid of the sphere, away from the cube's edges. */
+	int checked = 0, wrong = 0;
+	for (int i = 0; i < 24; i++)
+		for (int j = 1; j < 12; j++) {
+			double th = 2 * 3.14159265358979 * (i + 0.3) / 24, ph = 3.14159265358979 * j / 12;
+			double d[3] = { sin(ph) * cos(th), sin(ph) * sin(th), cos(ph) };
+			double m[3] = { fabs(d[0]), fabs(d[1]), fabs(d[2]) };
+			int ax = m[0] >= m[1] && m[0] >= m[2] ? 0 : m[1] >= m[2] ? 1 : 2;
+			double second = ax == 0 ? fmax(m[1], m[2]) : ax == 1 ? fmax(m[0], m[2]) :
+				       fmax(m[0], m[1]);
+			if (m[ax] - second < 0.05)
+				continue;
+			int face = 2 * ax + (d[ax] < 0);
+			float rgb[3];
+			CHECK(env_at(ts, "cube.env", d, rgb));
+			checked++;
+			for (int c = 0; c < 3; c++)
+				wrong += fabsf(rgb[c] - colours[face][c]) > 1e-5f;
+		}
+	printf("cube map: %d directions checked, %d channels wrong\n", checked, wrong);
+	CHECK(checked > 200);
+	CHECK(wrong == 0);
+	/* A mip-mapped lookup over a wide cone inside one face is still that face's colour. */
+	struct lookup l;
+	lookup_init(&l, "cube.env", 0, 3, 1);
+	float cone[4][3] = { { 0.3f, 0.3f, 1 }, { -0.3f, 0.3f, 1 }, { 0.3f, -0.3f, 1 },
+			     { -0.3f, -0.3f, 1 } };
+	for (int k = 0; k < 4; k++)
+		for (int a = 0; a < 3; a++)
+			l.d[k][a * NPTS] = cone[k][a];
+	CHECK(reyes_tex_environment(ts, &l.q));
+	CHECK_NEAR(l.out[0], 1, 1e-5);
+	CHECK_NEAR(l.out[NPTS], 0, 1e-5);
+	CHECK_NEAR(l.out[2 * NPTS], 1, 1e-5);
+	reyes_texsys_destroy(ts);
+
+	for (int k = 0; k < 6; k++)
+		write_face(paths[k], 64, colours[k], k == 0);
+	CHECK(reyes_make_cube_environment(faces, tmp_path("wide.env"), 120, "box", 1, 1, NULL));
+	ts = reyes_texsys_create(dir, NULL, NULL);
+	double worst = 0;
+	for (int k = -4; k <= 4; k++) {
+		double a = k * 10 * 3.14159265358979 / 180;
+		double d[3] = { cos(a), 0, -sin(a) };
+		float rgb[3];
+		CHECK(env_at(ts, "wide.env", d, rgb));
+		double want = 0.5 + tan(a) / (2 * tan(3.14159265358979 / 3));
+		worst = fmax(worst, fabs(rgb[0] - want));
+	}
+	printf("cube map, fov 120: worst s error %.2g (tolerance 1e-3)\n", worst);
+	CHECK(worst <= 1e-3);
+	reyes_texsys_destroy(ts);
+
+	/* Faces of different sizes, a bad fov and a missing face are errors. */
+	write_face(paths[1], 8, colours[1], false);
+	CHECK(!reyes_make_cube_environment(faces, tmp_path("bad.env"), 90, "box", 1, 1, NULL));
+	write_face(paths[1], 64, colours[1], false);
+	CHECK(!reyes_make_cube_environment(faces, tmp_path("bad.env"), 0, "box", 1, 1, NULL));
+	faces[5] = tmp_path("missing.exr");
+	CHECK(!reyes_make_cube_environment(faces, tmp_path("bad.env"), 90, "box", 1, 1, NULL));
+}
+
+/*
+ * MakeLatLongEnvironment from a 64x32 picture whose R is t and G is s at
+ * each texel centre: direction (x, y, z) looks up s = atan2(y, x) / 2pi and
+ * t = acos(z) / pi (texture.c's convention) within 1e-3 away from the poles
+ * and the seam, and the map says it is an environment.
+ */
+static void test_latlong_environment(void)
+{
+	static const char *const names[] = { "R", "G", "B" };
+	struct reyes_image im;
+	CHECK(reyes_image_init(&im, 64, 32, 3, names));
+	for (uint32_t y = 0; y < 32; y++)
+		for (uint32_t x = 0; x < 64; x++) {
+			im.data[(y * 64 + x) * 3] = (y + 0.5f) / 32;
+			im.data[(y * 64 + x) * 3 + 1] = (x + 0.5f) / 64;
+		}
+	CHECK(reyes_image_write_exr(tmp_path("ll.exr"), &im, false, NULL));
+	reyes_image_finish(&im);
+	CHECK(reyes_make_latlong_environment(tmp_path("ll.exr"), tmp_path("ll.env"), "box", 1, 1,
+					     NULL));
+	struct reyes_texsys *ts = reyes_texsys_create(dir, NULL, NULL);
+	const char *type = NULL;
+	CHECK(reyes_tex_info(ts, "ll.env", "type", SL_TYPE_STRING, 0, NULL, &type));
+	CHECK(type && !strcmp(type, "environment"));
+	double worst = 0;
+	for (int i = 1; i < 16; i++)
+		for (int j = 2; j < 11; j++) {
+			double th = 2 * 3.14159265358979 * i / 16.5, ph = 3.14159265358979 * j / 12.5;
+			double d[3] = { sin(ph) * cos(th), sin(ph) * sin(th), cos(ph) };
+			float rgb[3];
+			CHECK(env_at(ts, "ll.env", d, rgb));
+			worst = fmax(worst, fabs(rgb[0] - ph / 3.14159265358979));
+			worst = fmax(worst, fabs(rgb[1] - th / (2 * 3.14159265358979)));
+		}
+	printf("lat-long map: worst error %.2g (tolerance 1e-3)\n", worst);
+	CHECK(worst <= 1e-3);
+	reyes_texsys_destroy(ts);
+}
+
 /*
  * A shadow map of a light at the world origin looking down +z (orthographic):
  * NDC s = (x + 1) / 2, t = (1 - y) / 2 over x, y in [-1, 1]. The left half
@@ -1103,6 +1262,8 @@ int main(void)
 	RUN(test_make_texture);
 	RUN(test_texture_lookup);
 	RUN(test_environment);
+	RUN(test_cube_environment);
+	RUN(test_latlong_environment);
 	RUN(test_shadow);
 	RUN(test_threads);
 	remove_tree(dir);
