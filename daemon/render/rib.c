@@ -123,6 +123,10 @@ static const struct reqdef reqdefs[] = {
 	{"MakeTexture", "picturename:s texturename:s swrap:s twrap:s filter:s swidth:n twidth:n",
 	 TAKES_PARAMS},
 	{"MakeShadow", "picturename:s texturename:s", TAKES_PARAMS},
+	{"MakeLatLongEnvironment", "picturename:s texturename:s filter:s swidth:n twidth:n",
+	 TAKES_PARAMS},
+	{"MakeCubeFaceEnvironment", "px:s nx:s py:s ny:s pz:s nz:s texturename:s fov:n filter:s "
+	 "swidth:n twidth:n", TAKES_PARAMS},
 	/* geometry */
 	{"Sphere", "radius:n zmin:n zmax:n thetamax:n", TAKES_PARAMS},
 	{"Cylinder", "radius:n zmin:n zmax:n thetamax:n", TAKES_PARAMS},
@@ -147,7 +151,7 @@ static const char *const unsupported[] = {
 	"AreaLightSource", "ArchiveRecord", "Atmosphere", "Blobby", "Bound", "ColorSamples",
 	"Curves", "Deformation", "DepthOfField", "Detail", "DetailRange", "ErrorHandler",
 	"Exterior", "GeometricApproximation", "Imager", "Interior", "MakeBump",
-	"MakeCubeFaceEnvironment", "MakeLatLongEnvironment", "Matte", "NuPatch", "Perspective",
+	"Matte", "NuPatch", "Perspective",
 	"Points", "Procedural", "RelativeDetail", "SolidBegin", "SolidEnd",
 	"SubdivisionMesh", "TextureCoordinates", "TrimCurve",
 };
@@ -1167,7 +1171,7 @@ static bool parse_request(struct rib_reader *r, const struct reqdef *def)
 	request_reset(r);
 	advance(r);
 
-	struct argspec spec[10]; /* more than any request of the table has */
+	struct argspec spec[12]; /* as many as any request of the table has */
 	size_t nspec = parse_argspec(def->args, spec, sizeof(spec) / sizeof(spec[0]));
 	bool all_numbers = nspec > 0;
 	for (size_t i = 0; i < nspec; i++)

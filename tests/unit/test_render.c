@@ -1084,6 +1084,141 @@ static void test_periodic_patch_mesh(void)
 	CHECK(totals[0] > 0.3 * area && totals[0] < 0.9 * area);
 }
 
+/* Write a @w x @w picture of constant colour @rgb to @name in the test folder. */
+static void write_flat(const char *name, uint32_t w, const float rgb[3])
+{
+	const char *names[3] = { "R", "G", "B" };
+	struct reyes_image im;
+	CHECK(reyes_image_init(&im, w, w, 3, names));
+	for (size_t k = 0; k < (size_t)w * w; k++)
+		memcpy(&im.data[3 * k], rgb, 3 * sizeof(float));
+	CHECK(reyes_image_write_exr(tmp_path(name), &im, false, NULL));
+	reyes_image_finish(&im);
+}
+
+/*
+ * MakeCubeFaceEnvironment and MakeLatLongEnvironment in a RIB, looked up by
+ * environment() in a render: a unit sphere seen orthographically from -z
+ * (world and camera spaces the same) with Ci = environment(map, N in
+ * world space). The cube map has six constant faces: each pixel whose
+ * normals all point into one face (the pixel's corners' largest component
+ * is the same axis, with a margin) shows that face's colour within 1e-4.
+ * The lat-long map's R is t = acos(z) / pi at texel centres: each pixel
+ * inside the disk shows the mean of acos(Nz) / pi over its normals within
+ * 0.01 (the filter averages over the pixel's cone of directions), but for
+ * the pixels round the map's pole at -z (Nz < -0.95), where the cone spans
+ * every longitude and t is clamped at the last row's centre. The
+ * sphere's poles are turned to +-y, out of the region checked: seen pole
+ * on, a few grid points next to the pole get a zero shading normal.
+ */
+static void test_environment_render(void)
+{
+	static const float colours[6][3] = { { 1, 0, 0 }, { 0, 1, 0 }, { 0, 0, 1 },
+					      { 1, 1, 0 }, { 1, 0, 1 }, { 0, 1, 1 } };
+	static const char *const faces[6] = { "px.exr", "nx.exr", "py.exr", "ny.exr", "pz.exr",
+					       "nz.exr" };
+	for (int k = 0; k < 6; k++)
+		write_flat(faces[k], 16, colours[k]);
+	const char *names[3] = { "R", "G", "B" };
+	struct reyes_image ll;
+	CHECK(reyes_image_init(&ll, 64, 32, 3, names));
+	for (uint32_t y = 0; y < 32; y++)
+		for (uint32_t x = 0; x < 64; x++)
+			ll.data[(y * 64 + x) * 3] = (y + 0.5f) / 32;
+	CHECK(reyes_image_write_exr(tmp_path("ll.exr"), &ll, false, NULL));
+	reyes_image_finish(&ll);
+	CHECK(write_file("showenv.sl",
+			 "surface showenv(string map = \"\") { Oi = 1;"
+			 " vector Nw = vtransform(\"world\", normalize(N));"
+			 " Ci = color environment(map, Nw); }\n"));
+	for (int m = 0; m < 2; m++) {
+		char rib[2000];
+		snprintf(rib, sizeof(rib),
+			 "Option \"searchpath\" \"shader\" [\".:@\"]\n"
+			 "MakeCubeFaceEnvironment \"px.exr\" \"nx.exr\" \"py.exr\" \"ny.exr\" "
+			 "\"pz.exr\" \"nz.exr\" \"cube.env\" 90 \"box\" 1 1\n"
+			 "MakeLatLongEnvironment \"ll.exr\" \"ll.env\" \"box\" 1 1\n"
+			 "Format 32 32 1\n"
+			 "PixelSamples 2 2\n"
+			 "PixelFilter \"box\" 1 1\n"
+			 "Hider \"hidden\" \"jitter\" 0\n"
+			 "Projection \"orthographic\"\n"
+			 "ScreenWindow -1 1 -1 1\n"
+			 "Display \"env.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+			 "WorldBegin\n"
+			 "  Surface \"showenv\" \"map\" \"%s\"\n"
+			 "  ShadingInterpolation \"smooth\"\n"
+			 "  ShadingRate 0.25\n"
+			 "  Translate 0 0 5\n"
+			 "  Rotate 90 1 0 0\n"
+			 "  Sphere 1 -1 1 360\n"
+			 "WorldEnd\n", m ? "ll.env" : "cube.env");
+		struct reyes_image im = { 0 };
+		CHECK(render(rib, "env.exr", &im));
+		if (!im.data)
+			continue;
+		int ch[3] = { channel(&im, "R"), channel(&im, "G"), channel(&im, "B") };
+		int checked = 0;
+		double worst = 0;
+		for (uint32_t y = 0; y < 32; y++)
+			for (uint32_t x = 0; x < 32; x++) {
+				/* the normals at the pixel's corners and centre, seen from -z */
+				int axis = -1, sign = 0, n = 0;
+				bool one_face = true;
+				double tsum = 0;
+				for (int c = 0; c < 5; c++) {
+					double X = -1 + (x + (c < 4 ? c % 2 : 0.5)) / 16;
+					double Y = 1 - (y + (c < 4 ? c / 2 : 0.5)) / 16;
+					double r2 = X * X + Y * Y;
+					if (r2 > 0.9) {
+						one_face = false;
+						n = -1;
+						break;
+					}
+					double N[3] = { X, Y, -sqrt(1 - r2) };
+					double a[3] = { fabs(N[0]), fabs(N[1]), fabs(N[2]) };
+					int ax = a[0] >= a[1] && a[0] >= a[2] ? 0 : a[1] >= a[2] ? 1 : 2;
+					double second = ax == 0 ? fmax(a[1], a[2]) :
+						       ax == 1 ? fmax(a[0], a[2]) : fmax(a[0], a[1]);
+					int sg = N[ax] < 0;
+					if (a[ax] - second < 0.05 || (axis >= 0 && (ax != axis || sg != sign)))
+						one_face = false;
+					axis = ax, sign = sg;
+					n++;
+				}
+				if (n < 0)
+					continue;
+				if (m == 0) {
+					if (!one_face)
+						continue;
+					int face = 2 * axis + sign;
+					for (int c = 0; c < 3; c++)
+						worst = fmax(worst, fabs(px(&im, ch[c], x, y) -
+									 colours[face][c]));
+				} else {
+					double X = -1 + (x + 0.5) / 16, Y = 1 - (y + 0.5) / 16;
+					if (X * X + Y * Y < 0.1)
+						continue;
+					int ns = 8;
+					for (int j = 0; j < ns; j++)
+						for (int i = 0; i < ns; i++) {
+							double X = -1 + (x + (i + 0.5) / ns) / 16;
+							double Y = 1 - (y + (j + 0.5) / ns) / 16;
+							double Nz = -sqrt(fmax(0, 1 - X * X - Y * Y));
+							tsum += acos(Nz) / 3.14159265358979;
+						}
+					worst = fmax(worst, fabs(px(&im, ch[0], x, y) - tsum / (ns * ns)));
+				}
+				checked++;
+			}
+		printf("environment() on %s: %d pixels checked, worst error %.2g (tolerance %g)\n",
+		       m ? "a lat-long map" : "a cube map", checked, worst, m ? 0.01 : 1e-4);
+		CHECK(checked > (m ? 400 : 300));
+		CHECK(worst <= (m ? 0.01 : 1e-4));
+		reyes_image_finish(&im);
+	}
+}
+
 int main(void)
 {
 	snprintf(tmpdir, sizeof(tmpdir), "/tmp/relight-render-XXXXXX");
@@ -1104,6 +1239,7 @@ int main(void)
 	RUN(test_deforming_sphere);
 	RUN(test_height_field);
 	RUN(test_periodic_patch_mesh);
+	RUN(test_environment_render);
 	if (getenv("RELIGHT_KEEP_TMP")) return test_finish();
 	char cmd[600];
 	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", tmpdir);
