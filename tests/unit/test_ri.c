@@ -775,6 +775,58 @@ static void test_patches(void)
 		       "with steps 3 and 3", rib_path));
 }
 
+static void check_height_field(const struct reyes_scene *sc)
+{
+	CHECK(sc->nprims == 2);
+	if (sc->nprims != 2)
+		return;
+	for (uint32_t k = 0; k < 2; k++) {
+		const struct reyes_prim *p = &sc->prims[k];
+		CHECK(p->kind == REYES_PATCHES && p->heightfield);
+		const struct reyes_primvar *P = var(p, "P");
+		CHECK(P && P->type == SL_TYPE_POINT && P->cls == REYES_VERTEX);
+		/* z from "Pz"; x and y are the surface's u and v, put in when it is diced */
+		if (P && P->count == 4)
+			CHECK(P->values[2] == 1 && P->values[5] == 2 && P->values[11] == 4);
+	}
+	CHECK(sc->prims[1].nu == 3 && sc->prims[1].nv == 2 && sc->prims[1].npoints == 6);
+}
+
+/*
+ * "Pz": a vertex float, on Patch and PatchMesh only (height fields, RISpec);
+ * "nowrap" is "nonperiodic" with a warning, other wrap words an error.
+ */
+static void test_height_fields(void)
+{
+	CHECK(run("WorldBegin\nPatch \"bilinear\" \"Pz\" [1 2 3 4]\n"
+		  "PatchMesh \"bilinear\" 3 \"nonperiodic\" 2 \"nonperiodic\" \"Pz\" [1 2 3 4 5 6]\n"
+		  "WorldEnd\n", check_height_field));
+	CHECK(frames == 1);
+	CHECK_NO_DIAG();
+	CHECK(!run("WorldBegin\nPolygon \"Pz\" [1 2 3]\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: error: Polygon does not take \"Pz\"", rib_path));
+	CHECK(!run("WorldBegin\nSphere 1 -1 1 360 \"Pz\" [1 2 3 4]\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: error: Sphere does not take \"Pz\"", rib_path));
+	CHECK(!run("WorldBegin\nPatch \"bilinear\" \"vertex point Pz\" [1 2 3 4 5 6 7 8 9 10 11 12]\n"
+		   "WorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: error: Patch: \"Pz\" must be a vertex float", rib_path));
+	CHECK(!run("WorldBegin\nPatch \"bilinear\" \"Pz\" [1 2 3] \"P\" [0 0 0]\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: error: a bilinear Patch has 4 points, got 3", rib_path));
+	CHECK(!run("WorldBegin\nPatch \"bilinear\" \"Pz\" [1 2 3 4] "
+		   "\"P\" [0 0 0 1 0 0 0 1 0 1 1 0]\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: error: Patch: primitive variable \"P\" is given twice",
+			    rib_path));
+
+	CHECK(run("WorldBegin\nPatchMesh \"bilinear\" 2 \"nowrap\" 2 \"periodic\" "
+		  "\"P\" [0 0 0 1 0 0 0 1 0 1 1 0]\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: warning: PatchMesh wrap mode \"nowrap\" taken as "
+			    "\"nonperiodic\"", rib_path));
+	CHECK(!run("WorldBegin\nPatchMesh \"bilinear\" 2 \"wrap\" 2 \"periodic\" "
+		   "\"P\" [0 0 0 1 0 0 0 1 0 1 1 0]\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: error: PatchMesh wrap modes must be \"periodic\" or "
+			    "\"nonperiodic\", got 'wrap'", rib_path));
+}
+
 /* ---- objects, motion, archives ---- */
 
 static void check_instances(const struct reyes_scene *sc)
@@ -954,6 +1006,18 @@ static void check_motion(const struct reyes_scene *sc)
 	CHECK(Cs && Cs->values1 == NULL);
 }
 
+static void check_deforming_quadrics(const struct reyes_scene *sc)
+{
+	CHECK(sc->nprims == 2);
+	if (sc->nprims != 2)
+		return;
+	const struct reyes_prim *p = &sc->prims[0];
+	CHECK(p->kind == REYES_SPHERE && p->qmoving && !p->attrs->moving);
+	CHECK(p->q[0] == 1 && p->q[3] == 360 && p->q1[0] == 2 && p->q1[2] == 2 && p->q1[3] == 180);
+	/* the same parameters twice: nothing moves */
+	CHECK(sc->prims[1].kind == REYES_DISK && !sc->prims[1].qmoving);
+}
+
 static void test_motion(void)
 {
 	CHECK(run("Shutter 0 1\nWorldBegin\n"
@@ -985,6 +1049,25 @@ static void test_motion(void)
 		   "Polygon \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]\nMotionEnd\nWorldEnd\n", NULL));
 	CHECK_DIAG(test_fmt("%s:4: error: the Polygon samples of the MotionBegin at line 2 differ",
 		       rib_path));
+
+	/* Deforming quadrics: the second sample's parameters at shutter close; the
+	   samples must be one request with the same parameter list. */
+	CHECK(run("Shutter 0 1\nWorldBegin\nMotionBegin [0 1]\nSphere 1 -1 1 360\n"
+		  "Sphere 2 -2 2 180\nMotionEnd\nMotionBegin [0 1]\nDisk 0 1 360\nDisk 0 1 360\n"
+		  "MotionEnd\nWorldEnd\n", check_deforming_quadrics));
+	CHECK_NO_DIAG();
+	CHECK(!run("WorldBegin\nMotionBegin [0 1]\nSphere 1 -1 1 360\nCylinder 1 -1 1 360\n"
+		   "MotionEnd\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:4: error: Cylinder does not match the Sphere before it in the "
+			    "MotionBegin at line 2", rib_path));
+	CHECK(!run("WorldBegin\nMotionBegin [0 1]\nSphere 1 -1 1 360\n"
+		   "Sphere 2 -2 2 360 \"constant color Cs\" [1 0 0]\nMotionEnd\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:4: error: the Sphere samples of the MotionBegin at line 2 differ "
+			    "in their primitive variables", rib_path));
+	CHECK(!run("WorldBegin\nMotionBegin [0 1]\nPatch \"bilinear\" \"Pz\" [1 2 3 4]\n"
+		   "Patch \"bilinear\" \"P\" [0 0 0 1 0 0 0 1 0 1 1 0]\nMotionEnd\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:4: error: the Patch samples of the MotionBegin at line 2 differ "
+			    "in their patch mesh", rib_path));
 
 	CHECK(!run("WorldBegin\nMotionBegin [0 1]\nColor 1 0 0\nColor 0 1 0\nMotionEnd\n"
 		   "WorldEnd\n", NULL));
@@ -1185,6 +1268,7 @@ int main(void)
 	RUN(test_lights_before_world);
 	RUN(test_object_attributes);
 	RUN(test_motion);
+	RUN(test_height_fields);
 	RUN(test_archives);
 	RUN(test_errors);
 	RUN(test_frame_refused);
