@@ -183,8 +183,8 @@ static bool quadric_params(enum reyes_prim_kind kind, const float *a, struct qua
 	case REYES_PARABOLOID:
 		q->a = a[0], q->b = a[1], q->c = a[2];
 		if (q->c == 0.0) {
-			/* No paraboloid: its points on the axis at zmin. */
-			q->a = 0.0, q->c = 1.0, q->b = fmin(q->b, 1.0);
+			/* No paraboloid (zmax 0): its points at the apex. */
+			q->a = 0.0, q->b = q->c = 1e-30;
 			return false;
 		}
 		/* (z = zmax itself is always on the paraboloid's side of 0.) */

@@ -1415,6 +1415,119 @@ static void test_bilinear_mesh(void)
 	free(pa);
 }
 
+/*
+ * A deforming sphere (qmoving: radius 1 at open, 3 at close): P[1] on the
+ * bigger sphere at the same (u, v), each time's bound holding its points;
+ * one growing from radius 0 has its derivatives and normal from the close
+ * sample and its points at open at the centre.
+ */
+static void test_deforming_quadric(void)
+{
+	struct tprim t;
+	quadric(&t, REYES_SPHERE, 1, -1, 1, 360, 0, 0, 0);
+	t.prim.qmoving = true;
+	t.prim.q1[0] = 3, t.prim.q1[1] = -3, t.prim.q1[2] = 3, t.prim.q1[3] = 360;
+	CHECK(reyes_prim_deforms(&t.prim));
+	size_t n;
+	struct reyes_patch *pa = pieces(&t.prim, &n, NULL);
+	CHECK(n == 1);
+	struct reyes_grid g;
+	if (n == 1 && reyes_patch_dice(&pa[0], 7, 5, &g)) {
+		CHECK(g.P[1] != g.P[0] && grid_finite(&g));
+		float lo[2][3], hi[2][3];
+		reyes_patch_bound(&pa[0], 0, lo[0], hi[0]);
+		reyes_patch_bound(&pa[0], 1, lo[1], hi[1]);
+		CHECK(hi[0][0] < 1.01f && hi[1][0] > 2.99f && hi[1][0] < 3.01f);
+		for (uint32_t k = 0; k < g.n; k++) {
+			double P0[3], P1[3];
+			get3(g.P[0], g.n, k, P0);
+			get3(g.P[1], g.n, k, P1);
+			CHECK_NEAR(len3(P0), 1.0, 2e-6);
+			for (int c = 0; c < 3; c++) {
+				CHECK_NEAR(P1[c], 3 * P0[c], 1e-5);
+				CHECK(P0[c] >= lo[0][c] && P0[c] <= hi[0][c]);
+				CHECK(P1[c] >= lo[1][c] && P1[c] <= hi[1][c]);
+			}
+		}
+		reyes_grid_finish(&g);
+	}
+	free(pa);
+	t.prim.q[0] = t.prim.q[1] = t.prim.q[2] = 0;
+	pa = pieces(&t.prim, &n, NULL);
+	CHECK(n == 1);
+	if (n == 1 && reyes_patch_dice(&pa[0], 5, 5, &g)) {
+		CHECK(grid_finite(&g));
+		for (uint32_t k = 0; k < g.n; k++) {
+			double P0[3], P1[3], Ng[3];
+			get3(g.P[0], g.n, k, P0);
+			get3(g.P[1], g.n, k, P1);
+			get3(g.Ng, g.n, k, Ng);
+			CHECK(len3(P0) == 0.0);
+			CHECK_NEAR(len3(P1), 3.0, 1e-5);
+			CHECK_NEAR(dot3(Ng, P1) / (len3(Ng) * 3), 1.0, 1e-4);
+		}
+		reyes_grid_finish(&g);
+	}
+	free(pa);
+	/* Degenerate at both times: nothing to dice. */
+	t.prim.q1[0] = 0;
+	pa = pieces(&t.prim, &n, NULL);
+	CHECK(n == 0);
+	free(pa);
+}
+
+/*
+ * A height field: a 3x2 bilinear mesh whose "P" holds only z (x and y
+ * unused, here 7): diced points at (u, v, z), dPdu = (1, 0, dz/du) and
+ * dPdv = (0, 1, dz/dv) with respect to the mesh's u and v, the bound's x
+ * and y the piece's (u, v) range.
+ */
+static void test_height_field(void)
+{
+	struct tprim t;
+	const float z[6] = { 0, 1, 3, 2, 2, 2 };
+	float P[18];
+	for (int i = 0; i < 6; i++)
+		P[3 * i] = P[3 * i + 1] = 7, P[3 * i + 2] = z[i];
+	patch_init(&t, false, 3, 2, P, NULL, NULL, 1, 1);
+	t.prim.heightfield = true;
+	size_t n;
+	struct reyes_patch *pa = pieces(&t.prim, &n, NULL);
+	CHECK(n == 2);
+	for (size_t c = 0; c < n; c++) {
+		struct reyes_grid g;
+		if (!reyes_patch_dice(&pa[c], 5, 5, &g))
+			continue;
+		float lo[3], hi[3];
+		reyes_patch_bound(&pa[c], 0, lo, hi);
+		CHECK_NEAR(lo[0], 0.5 * c, 1e-5);
+		CHECK_NEAR(hi[0], 0.5 * c + 0.5, 1e-5);
+		CHECK_NEAR(lo[1], 0, 1e-5);
+		CHECK_NEAR(hi[1], 1, 1e-5);
+		for (uint32_t k = 0; k < g.n; k++) {
+			double p[3], du[3], dv[3];
+			get3(g.P[0], g.n, k, p);
+			get3(g.dPdu, g.n, k, du);
+			get3(g.dPdv, g.n, k, dv);
+			double u = g.u[k], v = g.v[k], f = 2 * u - (double)c;
+			const float *zc = &z[c];
+			double want = (1 - f) * (1 - v) * zc[0] + f * (1 - v) * zc[1] +
+				      (1 - f) * v * zc[3] + f * v * zc[4];
+			CHECK_NEAR(p[0], u, 1e-6);
+			CHECK_NEAR(p[1], v, 1e-6);
+			CHECK_NEAR(p[2], want, 1e-5);
+			CHECK_NEAR(du[0], 1, 0);
+			CHECK_NEAR(du[1], 0, 0);
+			CHECK_NEAR(du[2], 2 * ((1 - v) * (zc[1] - zc[0]) + v * (zc[4] - zc[3])), 1e-5);
+			CHECK_NEAR(dv[0], 0, 0);
+			CHECK_NEAR(dv[1], 1, 0);
+			CHECK(p[0] >= lo[0] && p[0] <= hi[0] && p[2] >= lo[2] && p[2] <= hi[2]);
+		}
+		reyes_grid_finish(&g);
+	}
+	free(pa);
+}
+
 static void test_periodic(void)
 {
 	/* Bilinear, periodic in u: 4 points on a square ring, 2 rows: 4 cells. */
@@ -1700,6 +1813,8 @@ int main(void)
 	RUN(test_threads);
 	RUN(test_bilinear_mesh);
 	RUN(test_periodic);
+	RUN(test_deforming_quadric);
+	RUN(test_height_field);
 	RUN(test_bicubic_bounds);
 	RUN(test_bezier_corners);
 	RUN(test_timing);
