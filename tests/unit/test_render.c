@@ -1109,7 +1109,8 @@ static void write_flat(const char *name, uint32_t w, const float rgb[3])
  * the pixels round the map's pole at -z (Nz < -0.95), where the cone spans
  * every longitude and t is clamped at the last row's centre. The
  * sphere's poles are turned to +-y, out of the region checked: seen pole
- * on, a few grid points next to the pole get a zero shading normal.
+ * on, the grids round the pole meet with cracks that let half a pixel's
+ * samples through to the far side in four pixels.
  */
 static void test_environment_render(void)
 {
