@@ -61,8 +61,8 @@ static void usage(FILE *out)
 		"\n"
 		"-IDIR and -DNAME may also be written joined. If FILE.sl does not exist and\n"
 		"contains no '/', it is looked for (also with .sl appended) in each directory\n"
-		"of $RELIGHT_SHADER_PATH (colon-separated), then in the project's shader\n"
-		"library (%s).\n"
+		"of $RELIGHT_SHADER_PATH, then of $RMAN_SHADERPATH (both colon-separated),\n"
+		"then in the project's shader library (%s).\n"
 		"\n"
 		"Exit status: 0 on success, 1 if the shader has errors or cannot be read or\n"
 		"the output cannot be written, 2 on a usage error.\n",
@@ -116,17 +116,16 @@ static char *find_shader(const char *name)
 	if (is_file(name) || strchr(name, '/'))
 		return strdup(name);
 
-	const char *path = getenv("RELIGHT_SHADER_PATH");
-	if (path) {
-		for (const char *p = path;;) {
+	const char *const vars[] = { "RELIGHT_SHADER_PATH", "RMAN_SHADERPATH" };
+	for (size_t v = 0; v < sizeof(vars) / sizeof(vars[0]); v++) {
+		const char *path = getenv(vars[v]);
+		for (const char *p = path; p;) {
 			const char *colon = strchr(p, ':');
 			size_t len = colon ? (size_t)(colon - p) : strlen(p);
 			char *found = try_dir(p, len, name);
 			if (found)
 				return found;
-			if (!colon)
-				break;
-			p = colon + 1;
+			p = colon ? colon + 1 : NULL;
 		}
 	}
 	return try_dir(RELIGHT_SOURCE_SHADER_DIR, strlen(RELIGHT_SOURCE_SHADER_DIR), name);

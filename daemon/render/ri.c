@@ -1331,100 +1331,28 @@ static const char *search_file(struct ri *ri, const char *name, const char *firs
 	return found;
 }
 
-/*
- * The name the shader in @src declares: the identifier after the first
- * shader type keyword (surface, light, displacement, volume, imager) that
- * is followed by '('. Comments, strings and preprocessor lines are skipped;
- * a name spelled through a macro is not seen. Returns its length (0: none)
- * and sets *@name to it.
- */
-static size_t declared_name(const char *src, size_t len, const char **name)
-{
-	static const char *const kinds[] = {"surface", "light", "displacement", "volume",
-					    "imager"};
-	const char *p = src, *end = src + len;
-	const char *prev = NULL; /* the last identifier, when it is a kind */
-	bool line_start = true;
-	while (p < end) {
-		char c = *p;
-		if (c == '\n') {
-			line_start = true;
-			p++;
-			continue;
-		}
-		if (c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v') {
-			p++;
-			continue;
-		}
-		if (line_start && c == '#') {
-			while (p < end && *p != '\n')
-				p += (*p == '\\' && p + 1 < end) ? 2 : 1;
-			continue;
-		}
-		line_start = false;
-		if (c == '/' && p + 1 < end && p[1] == '/') {
-			while (p < end && *p != '\n')
-				p++;
-			continue;
-		}
-		if (c == '/' && p + 1 < end && p[1] == '*') {
-			p += 2;
-			while (p + 1 < end && !(p[0] == '*' && p[1] == '/'))
-				p++;
-			p = p + 1 < end ? p + 2 : end;
-			continue;
-		}
-		if (c == '"') {
-			for (p++; p < end && *p != '"' && *p != '\n'; p++)
-				if (*p == '\\' && p + 1 < end)
-					p++;
-			p = p < end ? p + 1 : end;
-			prev = NULL;
-			continue;
-		}
-		if (isalpha((unsigned char)c) || c == '_') {
-			const char *s = p;
-			while (p < end && (isalnum((unsigned char)*p) || *p == '_'))
-				p++;
-			size_t n = (size_t)(p - s);
-			if (prev) {
-				const char *q = p;
-				while (q < end && isspace((unsigned char)*q))
-					q++;
-				if (q < end && *q == '(') {
-					*name = s;
-					return n;
-				}
-			}
-			prev = NULL;
-			for (size_t k = 0; k < sizeof(kinds) / sizeof(kinds[0]); k++)
-				if (strlen(kinds[k]) == n && memcmp(kinds[k], s, n) == 0)
-					prev = s;
-			continue;
-		}
-		prev = NULL;
-		p++;
-	}
-	return 0;
-}
-
 static int cmp_names(const void *a, const void *b)
 {
 	return strcmp(*(const char *const *)a, *(const char *const *)b);
 }
 
 /*
- * Index the .sl files of each folder of @path by the name they declare,
- * once per search path and read: "path\nname" -> file in ri->shader_names.
+ * Index the .sl files of each folder of @path by the name they declare
+ * (after preprocessing, with the include path of the moment), once per
+ * search path and read: "path\nname" -> file in ri->shader_names.
  * The first folder of the path that has a name wins, and within a folder
  * the file whose name sorts first.
  */
+static const char *const *split_path(struct ri *ri, const char *path, size_t *n);
+
 static void index_shader_names(struct ri *ri, const char *path)
 {
 	uintptr_t v;
 	if (strmap_get(&ri->names_indexed, path, &v))
 		return;
 	strmap_put(&ri->names_indexed, rl_arena_strdup(ri->perm, path), 1);
+	size_t nincs;
+	const char *const *incs = split_path(ri, ri->opt.o.include_path, &nincs);
 	for (const char *p = path; p && *p;) {
 		const char *e = strchr(p, ':');
 		size_t n = e ? (size_t)(e - p) : strlen(p);
@@ -1450,14 +1378,14 @@ static void index_shader_names(struct ri *ri, const char *path)
 			char *src = is_file(file) ? rl_read_file(file, 4u << 20, &len, err,
 								 sizeof(err))
 						  : NULL;
-			const char *name;
-			size_t nlen = src ? declared_name(src, len, &name) : 0;
-			if (nlen) {
-				const char *key = rl_arena_printf(ri->perm, "%s\n%.*s", path,
-								  (int)nlen, name);
+			struct sl_options so = {.include_dirs = incs, .n_include_dirs = nincs};
+			char *name = src ? sl_declared_name(file, src, len, &so) : NULL;
+			if (name) {
+				const char *key = rl_arena_printf(ri->perm, "%s\n%s", path, name);
 				if (!strmap_get(&ri->shader_names, key, &v))
 					strmap_put(&ri->shader_names, key, (uintptr_t)file);
 			}
+			free(name);
 			free(src);
 		}
 		rl_vec_free(files);

@@ -63,7 +63,8 @@ static void add_candidate(struct candidate *c, size_t *n, size_t cap, const char
  * Where the shader of entry @o may be, in order: its path relative to the
  * shot file ("source_relative": the project moved as a whole), the
  * absolute path of the bake ("source"), then its file name in the folders
- * of $RELIGHT_SHADER_PATH, the shot's own folder and the standard library.
+ * of $RELIGHT_SHADER_PATH, then $RMAN_SHADERPATH, the shot's own folder and
+ * the standard library.
  */
 static size_t candidates(const cJSON *o, const char *shot, struct candidate *c, size_t cap)
 {
@@ -78,8 +79,11 @@ static size_t candidates(const cJSON *o, const char *shot, struct candidate *c, 
 	add_candidate(c, &n, cap, NULL, src);
 	const char *base = src ? strrchr(src, '/') : NULL;
 	base = base ? base + 1 : src;
-	const char *env = getenv("RELIGHT_SHADER_PATH");
-	if (env && *env) {
+	const char *const vars[] = { "RELIGHT_SHADER_PATH", "RMAN_SHADERPATH" };
+	for (size_t v = 0; v < sizeof(vars) / sizeof(vars[0]); v++) {
+		const char *env = getenv(vars[v]);
+		if (!env || !*env)
+			continue;
 		char *dirs = strdup(env), *save = NULL;
 		for (char *d = dirs ? strtok_r(dirs, ":", &save) : NULL; d;
 		     d = strtok_r(NULL, ":", &save))
@@ -140,8 +144,8 @@ struct sl_program *shot_meta_shader(const cJSON *o, const char *shot, FILE *diag
 			"baked with\n", shot, broken);
 	else
 		fprintf(diag, "relight: error: %s: cannot find the shader '%s' the shot was baked "
-			"with (not beside the shot as '%s', nor along $RELIGHT_SHADER_PATH or the "
-			"standard library)\n", shot, src,
+			"with (not beside the shot as '%s', nor along $RELIGHT_SHADER_PATH, $RMAN_SHADERPATH or "
+			"the standard library)\n", shot, src,
 			shot_meta_str(o, "source_relative") ? shot_meta_str(o, "source_relative")
 							     : src);
 	return NULL;

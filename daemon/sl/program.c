@@ -128,6 +128,29 @@ struct sl_program *sl_compile_string(const char *name, const char *src, size_t l
 	return prog;
 }
 
+char *sl_declared_name(const char *path, const char *src, size_t len,
+		       const struct sl_options *opts)
+{
+	struct sl_ctx ctx;
+	sl_ctx_init(&ctx, opts);
+	ctx.quiet = true;
+	struct sl_token_list toks = { 0 };
+	sl_preprocess(&ctx, path, src, len, &toks);
+	char *name = NULL;
+	for (size_t i = 0; i + 2 < toks.len && !name; i++) {
+		enum sl_tok k = toks.data[i].kind;
+		if (k >= SL_TOK_KW_SURFACE && k <= SL_TOK_KW_IMAGER &&
+		    toks.data[i + 1].kind == SL_TOK_IDENT && toks.data[i + 2].kind == SL_TOK_LPAREN)
+		{
+			name = rl_xcalloc(toks.data[i + 1].len + 1, 1);
+			memcpy(name, toks.data[i + 1].text, toks.data[i + 1].len);
+		}
+	}
+	free(toks.data);
+	sl_ctx_finish(&ctx);
+	return name;
+}
+
 struct sl_program *sl_compile_file(const char *path, const struct sl_options *opts)
 {
 	struct sl_ctx ctx;

@@ -46,6 +46,16 @@ struct sl_program *sl_compile_file(const char *path, const struct sl_options *op
 struct sl_program *sl_compile_string(const char *name, const char *src, size_t len,
 				     const struct sl_options *opts);
 
+/**
+ * The name of the shader that the source @src of file @path declares: the
+ * identifier after its shader kind (surface, light, ...) as the
+ * preprocessor leaves it, so that a name made by a macro counts. Includes
+ * are looked up as sl_compile_file() does; nothing is reported. Returns a
+ * malloc'd name, or NULL when no shader is declared.
+ */
+char *sl_declared_name(const char *path, const char *src, size_t len,
+		       const struct sl_options *opts);
+
 /** Free a program. Accepts NULL. */
 void sl_program_destroy(struct sl_program *prog);
 

@@ -159,6 +159,22 @@ expect_status 0
 run "no path" "$relight" render -q env.rib
 expect_status 1
 expect_stderr "cannot find shader 'envshader'"
+# relight compile finds a bare name along $RMAN_SHADERPATH too, and the
+# preview finds a shot's shader there once it is neither where the bake
+# read it nor beside the shot.
+run "compile along RMAN_SHADERPATH" env RMAN_SHADERPATH="$work/env2" "$relight" compile envshader
+expect_status 0
+run "compile, no path" "$relight" compile envshader
+expect_status 1
+mkdir -p moved
+mv env2/envshader.sl moved/
+run "preview along RMAN_SHADERPATH" env RMAN_SHADERPATH="$work/moved" "$relight" preview --cpu \
+	-o envp.exr env.shot.exr
+expect_status 0
+run "preview, no path" "$relight" preview --cpu -o envq.exr env.shot.exr
+expect_status 1
+expect_stderr "RMAN_SHADERPATH"
+mv moved/envshader.sl env2/
 
 # 5. The built-in null shader: accepted for each kind; does nothing.
 scene null $'LightSource "null" 1\n  Displacement "null"\n  Surface "null"' ''

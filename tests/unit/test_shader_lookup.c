@@ -86,6 +86,18 @@ static void test_declared_name(void)
 	put("u.rib", "WorldBegin\nSurface \"Wrong\"\nSphere 1 -1 1 360\nWorldEnd\n");
 	CHECK(!read_rib("u.rib", NULL, NULL));
 	CHECK(strstr(diag, "cannot find shader 'Wrong'") != NULL);
+	/* The name as the preprocessor leaves it: made by a macro, or not
+	   compiled at all inside #if 0. */
+	put("a/made.sl", "#define NAME(x) Made##x\n"
+			 "#if 0\nsurface Hidden() { Ci = 0; }\n#endif\n"
+			 "surface NAME(Here)() { Ci = 1; }\n");
+	put("m.rib", "WorldBegin\nSurface \"MadeHere\"\nSphere 1 -1 1 360\nWorldEnd\n");
+	CHECK(read_rib("m.rib", NULL, NULL));
+	CHECK(nnames == 1);
+	CHECK_STR(names[0], "MadeHere");
+	put("h.rib", "WorldBegin\nSurface \"Hidden\"\nSphere 1 -1 1 360\nWorldEnd\n");
+	CHECK(!read_rib("h.rib", NULL, NULL));
+	CHECK(strstr(diag, "cannot find shader 'Hidden'") != NULL);
 }
 
 static void test_includes(void)
