@@ -963,6 +963,11 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 							ty[k] += s->lv * ly * c;
 						}
 					}
+					/* quad_test's own bound test, before the edges are built:
+					 * most samples of a blurred quad's bound miss it. */
+					if (s->x < min4(tx) || s->x > max4(tx) || s->y < min4(ty) ||
+					    s->y > max4(ty))
+						continue;
 					float *wp = g->smooth ? w : NULL;
 					if (!quad_init(&q, tx, ty, g->cull_backfacing, g->flip) ||
 					    !quad_test(&q, s->x, s->y, tz, wp, &z))

@@ -962,7 +962,7 @@ static bool parse_number_args(struct rib_reader *r, const struct reqdef *def,
 		got++;
 		advance(r);
 	}
-	if (got == 0 && (def->flags & NONE_OK) && peek(r) != T_ERR && peek(r) != T_LBRACK)
+	if (got == 0 && (def->flags & NONE_OK) && (peek(r) == T_NAME || peek(r) == T_EOF))
 		return true;
 	if (got != nspec) {
 		if (peek(r) == T_ERR)
