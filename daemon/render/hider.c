@@ -848,6 +848,51 @@ static void id_overflow(struct reyes_hider *h, const struct reyes_hider_grid *g)
 		g->nu, g->nv, g->id0);
 }
 
+/*
+ * A still quad seen through the lens: each vertex moves by its own
+ * defocus times the sample's lens position. Most samples of the widened
+ * bound miss the quad; a bound of the moved quad from the extremes of the
+ * vertices' moves (with a margin far above rounding) rejects them before
+ * the exact test.
+ */
+static void add_defocused(struct reyes_hider *h, const struct mp_src *m, struct quad *q,
+			  const float vx[4], const float vy[4], const float vz[4], uint32_t sx0,
+			  uint32_t sx1, uint32_t sy0, uint32_t sy1)
+{
+	const struct reyes_hider_grid *g = m->g;
+	float dx[4], dy[4];
+	for (int k = 0; k < 4; k++) {
+		float c = defocus(h, vz[k]);
+		dx[k] = h->o.lens[0] * c;
+		dy[k] = h->o.lens[1] * c;
+	}
+	const float slack = 1e-3f;
+	float x0 = min4(vx) - slack, x1 = max4(vx) + slack;
+	float y0 = min4(vy) - slack, y1 = max4(vy) + slack;
+	float dx0 = min4(dx), dx1 = max4(dx), dy0 = min4(dy), dy1 = max4(dy);
+	for (uint32_t gy = sy0; gy <= sy1; gy++) {
+		struct sample *row = h->samp + (size_t)(gy - h->gy0) * h->sw;
+		for (uint32_t gx = sx0; gx <= sx1; gx++) {
+			struct sample *s = row + (gx - h->gx0);
+			float lu = s->lu, lv = s->lv;
+			float ax = lu >= 0.0f ? lu * dx0 : lu * dx1, bx = lu >= 0.0f ? lu * dx1 : lu * dx0;
+			float ay = lv >= 0.0f ? lv * dy0 : lv * dy1, by = lv >= 0.0f ? lv * dy1 : lv * dy0;
+			if (s->x < x0 + ax || s->x > x1 + bx || s->y < y0 + ay || s->y > y1 + by)
+				continue;
+			float tx[4], ty[4], w[4], z;
+			for (int k = 0; k < 4; k++) {
+				tx[k] = vx[k] + lu * dx[k];
+				ty[k] = vy[k] + lv * dy[k];
+			}
+			float *wp = g->smooth ? w : NULL;
+			if (!quad_init(q, tx, ty, g->cull_backfacing, g->flip) ||
+			    !quad_test(q, s->x, s->y, vz, wp, &z))
+				continue;
+			sample_hit(h, s, z, m, wp);
+		}
+	}
+}
+
 void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 {
 	if (!h || !h->active || !g || g->nu < 2 || g->nv < 2 || !g->x[0] || !g->y[0] ||
@@ -860,7 +905,6 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 	const float *X1 = g->x[1] ? g->x[1] : X0;
 	const float *Y1 = g->y[1] ? g->y[1] : Y0;
 	const float *Z1 = g->z[1] ? g->z[1] : Z0;
-	bool grid_moves = X1 != X0 || Y1 != Y0 || Z1 != Z0;
 	bool dof = h->dof;
 	float lx = o->lens[0], ly = o->lens[1];
 	double rx0 = h->rx0, rx1 = h->rx1, ry0 = h->ry0, ry1 = h->ry1;
@@ -944,8 +988,25 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 				continue;
 			}
 
-			/* Moving or seen through a lens: each sample sees the quad at
-			 * its own time, from its own lens position. */
+			if (!moves) {
+				add_defocused(h, &m, &q, vx, vy, vz, sx0, sx1, sy0, sy1);
+				continue;
+			}
+
+			/* Moving (and maybe seen through a lens): each sample sees the
+			 * quad at its own time, from its own lens position. Through a
+			 * lens, the quad at the sample's time with the extremes of its
+			 * vertices' defocus over the shutter (1/z is monotonic along
+			 * each path) bounds it, and rejects most samples cheaply. */
+			float c0 = 0.0f, c1 = 0.0f;
+			if (dof) {
+				c0 = c1 = defocus(h, vz[0]);
+				for (int k = 0; k < 4; k++) {
+					float a = defocus(h, vz[k]), b = defocus(h, z1[k]);
+					c0 = fminf(c0, fminf(a, b));
+					c1 = fmaxf(c1, fmaxf(a, b));
+				}
+			}
 			for (uint32_t gy = sy0; gy <= sy1; gy++) {
 				struct sample *row = h->samp + (size_t)(gy - h->gy0) * h->sw;
 				for (uint32_t gx = sx0; gx <= sx1; gx++) {
@@ -954,8 +1015,20 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 					for (int k = 0; k < 4; k++) {
 						tx[k] = lerpf(vx[k], x1[k], s->t);
 						ty[k] = lerpf(vy[k], y1[k], s->t);
-						tz[k] = lerpf(vz[k], z1[k], s->t);
 					}
+					if (dof) {
+						const float slack = 1e-3f;
+						float ux = s->lu * lx, uy = s->lv * ly;
+						float ax = ux >= 0.0f ? ux * c0 : ux * c1;
+						float bx = ux >= 0.0f ? ux * c1 : ux * c0;
+						float ay = uy >= 0.0f ? uy * c0 : uy * c1;
+						float by = uy >= 0.0f ? uy * c1 : uy * c0;
+						if (s->x < min4(tx) + ax - slack || s->x > max4(tx) + bx + slack ||
+						    s->y < min4(ty) + ay - slack || s->y > max4(ty) + by + slack)
+							continue;
+					}
+					for (int k = 0; k < 4; k++)
+						tz[k] = lerpf(vz[k], z1[k], s->t);
 					if (dof) {
 						for (int k = 0; k < 4; k++) {
 							float c = defocus(h, tz[k]);

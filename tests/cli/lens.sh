@@ -14,8 +14,8 @@
 #     position at its time, is what the indirect framebuffer records.
 #
 # The closed forms (the circle of confusion, the focal plane, a panning
-# camera's ramp) are in tests/unit/test_lens.c; the GPU preview of the same
-# kind of scene is in tests/cli/gpu.sh (examples/lens).
+# camera's ramp) are in tests/unit/test_lens.c; the GPU preview of these
+# scenes is tests/cli/lens_gpu.sh.
 source "$(dirname "$0")/lib.sh"
 
 max_mean_pct=0.1
@@ -113,80 +113,15 @@ assert d["mean_pct"] < float(sys.argv[3]) and d["max_pct"] < float(sys.argv[4]),
 ' "$work/stdout" "$1" "$max_mean_pct" "$max_max_pct" || fail "preview --cpu differs from the reference"
 }
 
-# Three spheres before, at and behind the focal plane (depth 4) on a floor:
-# circles of confusion of about 4 pixels in front, 2.5 at the back.
-cat >"$work/dof.rib" <<'RIB'
-Format 64 48 1
-PixelSamples 8 8
-Projection "perspective" "fov" 40
-DepthOfField 1 0.5 4
-Display "dof.exr" "file" "rgba"
-Translate 0 -0.6 0
-WorldBegin
-  LightSource "distantlight" 1 "intensity" 0.9 "from" [-1 2 -1] "to" [0 0 0]
-  LightSource "pointlight" 2 "intensity" 6 "from" [1 2 2]
-  Surface "plastic"
-  AttributeBegin
-    Color [0.6 0.6 0.6]
-    Polygon "P" [-6 -0.5 1  6 -0.5 1  6 -0.5 14  -6 -0.5 14]
-  AttributeEnd
-  AttributeBegin
-    Color [0.9 0.3 0.1]
-    Translate -0.5 0 2
-    Sphere 0.3 -0.3 0.3 360
-  AttributeEnd
-  AttributeBegin
-    Color [0.2 0.8 0.3]
-    Translate 0.4 0.2 4
-    Sphere 0.5 -0.5 0.5 360
-  AttributeEnd
-  AttributeBegin
-    Color [0.2 0.4 0.9]
-    Translate 1.8 0.8 9
-    Sphere 1 -1 1 360
-  AttributeEnd
-WorldEnd
-RIB
+# tests/cli/lens/dof.rib: three spheres before, at and behind the focal plane
+# (depth 4) on a floor, circles of confusion of about 4 pixels in front, 2.5
+# at the back.
+cp "$source_dir/tests/cli/lens/dof.rib" "$work/"
 check_resolve "depth of field" dof.rib
 
-# A camera panning and turning over the shutter, a sphere moving against it.
-cat >"$work/pan.rib" <<'RIB'
-Format 64 48 1
-PixelSamples 8 8
-Shutter 0 1
-Projection "perspective" "fov" 40
-Display "pan.exr" "file" "rgba"
-MotionBegin [0 1]
-  Translate 0.3 -0.6 0
-  Translate -0.3 -0.5 0
-MotionEnd
-MotionBegin [0 1]
-  Rotate 0 0 1 0
-  Rotate 4 0 1 0
-MotionEnd
-WorldBegin
-  LightSource "distantlight" 1 "intensity" 0.9 "from" [-1 2 -1] "to" [0 0 0]
-  LightSource "ambientlight" 2 "intensity" 0.15
-  Surface "plastic"
-  AttributeBegin
-    Color [0.6 0.6 0.6]
-    Polygon "P" [-6 -0.5 1  6 -0.5 1  6 -0.5 14  -6 -0.5 14]
-  AttributeEnd
-  AttributeBegin
-    Color [0.9 0.3 0.1]
-    MotionBegin [0 1]
-      Translate -0.6 0 4
-      Translate 0.2 0.2 4
-    MotionEnd
-    Sphere 0.5 -0.5 0.5 360
-  AttributeEnd
-  AttributeBegin
-    Color [0.2 0.4 0.9]
-    Translate 1 0.3 6
-    Sphere 0.6 -0.6 0.6 360
-  AttributeEnd
-WorldEnd
-RIB
+# tests/cli/lens/pan.rib: a camera panning and turning over the shutter, a
+# sphere moving against it.
+cp "$source_dir/tests/cli/lens/pan.rib" "$work/"
 check_resolve "camera motion" pan.rib
 
 # Both at once: a moving camera with a lens.
