@@ -229,7 +229,7 @@ write("examples/motion/motion.rib", motion)
 # ---- lens: depth of field and a moving camera ----
 lens = """##RenderMan RIB
 # Depth of field and camera motion: a row of spheres receding along a floor,
-# seen through a lens (f/2, focal length 0.35) focused on the third, while
+# seen through a lens (f/2.8, focal length 0.35) focused on the third, while
 # the camera slides sideways over the shutter and one sphere moves with it.
 # The floor starts in front of the camera: what lies near the eye plane
 # blurs over the whole frame through a lens, at a cost to match.
@@ -240,7 +240,7 @@ FrameBegin 1
   PixelSamples 4 4
   Shutter 0 1
   Projection "perspective" "fov" 40
-  DepthOfField 2 0.35 5.6
+  DepthOfField 2.8 0.35 5.6
   Display "lens.exr" "file" "rgba"
   MotionBegin [0 1]
     %(cam0)s
