@@ -11,6 +11,21 @@
  * that neighbouring buckets both sample is sampled identically. Positions
  * lie strictly inside their pixel (never on an integer coordinate).
  *
+ * Lens. With depth of field a sample also takes a lens position: one of
+ * the pixel's xsamples x ysamples cells of the unit square, chosen by a
+ * second per-pixel permutation (so that the lens follows neither position
+ * nor time), jittered inside the cell and carried to the unit disk by the
+ * concentric map, which keeps the strata's areas. A thin lens at the eye,
+ * focused at distance d, shows a camera-space point P from lens point L at
+ * the screen position where the ray from L through P meets the plane z = d,
+ * seen from the eye: P.xy / z + L (1/d - 1/z). So a vertex at depth z moves
+ * by the lens position times the aperture radius in pixels (at unit
+ * distance) times (1/d - 1/z): nothing on the focal plane, a disk whose
+ * diameter is proportional to |1/d - 1/z| elsewhere. Each sample moves the
+ * micropolygon's vertices for its lens position (and time) and tests the
+ * moved quad, as motion blur does; the depth it records is the camera depth
+ * of the point it hits.
+ *
  * Micropolygons. Each quad (i, j), (i+1, j), (i+1, j+1), (i, j+1) is cut
  * along the diagonal (i, j)-(i+1, j+1) into two triangles. A sample is inside
  * a triangle when it is strictly inside every edge; a sample exactly on an
@@ -87,6 +102,7 @@
 
 struct sample {
 	float x, y, t;        /* raster position, time in [0, 1) */
+	float lu, lv;         /* lens position on the unit disk (0, 0 without depth of field) */
 	float zopq;           /* depth at which the sample became opaque, INFINITY if not */
 	uint32_t head;        /* nearest hit, NIL when none */
 	float zo[2];          /* midpoint depthfilter: the two nearest opaque hits */
@@ -140,6 +156,8 @@ struct reyes_hider {
 	uint32_t nps;         /* samples per pixel */
 	uint32_t mx, my;      /* filter margin in pixels */
 	uint32_t *perm;       /* scratch for the time permutation */
+	uint32_t *lperm;      /* scratch for the lens permutation */
+	bool dof;             /* depth of field: samples have lens positions */
 	float hw, hh;         /* half widths */
 	bool radial;          /* the radial Catmull-Rom; else separable */
 	float tabx[TAB_N + 2], taby[TAB_N + 2], tabr[TAB_N + 2];
@@ -230,6 +248,9 @@ static bool check_opts(const struct reyes_hider_opts *o)
 		return bad_opt("unknown depth filter");
 	if (o->naov > MAX_AOV)
 		return bad_opt("too many output channels");
+	if (!(o->lens[0] >= 0.0f && o->lens[1] >= 0.0f && isfinite(o->lens[0]) &&
+	      isfinite(o->lens[1]) && o->focus >= 0.0f && isfinite(o->focus)))
+		return bad_opt("lens out of range (aperture and 1 / focal distance finite, >= 0)");
 	return true;
 }
 
@@ -282,6 +303,8 @@ struct reyes_hider *reyes_hider_create(const struct reyes_hider_opts *opts)
 	h->o = *opts;
 	h->nps = opts->xsamples * opts->ysamples;
 	h->perm = rl_xmalloc(h->nps * sizeof(*h->perm));
+	h->lperm = rl_xmalloc(h->nps * sizeof(*h->lperm));
+	h->dof = opts->lens[0] > 0.0f || opts->lens[1] > 0.0f;
 	h->acc_aov = rl_xcalloc(opts->naov ? opts->naov : 1, sizeof(*h->acc_aov));
 	h->freelist = NIL;
 	build_tables(h);
@@ -293,6 +316,7 @@ void reyes_hider_destroy(struct reyes_hider *h)
 	if (!h)
 		return;
 	free(h->perm);
+	free(h->lperm);
 	free(h->samp);
 	free(h->hits);
 	free(h->hit_aov);
@@ -328,27 +352,59 @@ static float inside_pixel(double v, uint32_t lo)
 	return f;
 }
 
+/* A Fisher-Yates shuffle of 0 .. n-1 into @perm, driven by the hash state @st. */
+static void shuffle(uint32_t *perm, uint32_t n, uint64_t st)
+{
+	for (uint32_t k = 0; k < n; k++)
+		perm[k] = k;
+	for (uint32_t k = n; k > 1; k--) {
+		st = mix64(st + 0x9e3779b97f4a7c15u);
+		uint32_t r = (uint32_t)(((st >> 32) * k) >> 32);
+		uint32_t tmp = perm[k - 1];
+		perm[k - 1] = perm[r];
+		perm[r] = tmp;
+	}
+}
+
+/*
+ * The concentric map of the unit square onto the unit disk (Shirley and
+ * Chiu): squares around the centre go to rings, so strata keep their area
+ * and stay compact.
+ */
+static void square_to_disk(double u, double v, float *x, float *y)
+{
+	double a = 2.0 * u - 1.0, b = 2.0 * v - 1.0, r, phi;
+	if (a == 0.0 && b == 0.0) {
+		*x = *y = 0.0f;
+		return;
+	}
+	if (fabs(a) > fabs(b)) {
+		r = a;
+		phi = 0.78539816339744831 * (b / a);
+	} else {
+		r = b;
+		phi = 1.5707963267948966 - 0.78539816339744831 * (a / b);
+	}
+	*x = (float)(r * cos(phi));
+	*y = (float)(r * sin(phi));
+}
+
 static void fill_samples(struct reyes_hider *h)
 {
 	const struct reyes_hider_opts *o = &h->o;
 	uint32_t xs = o->xsamples, ys = o->ysamples, n = h->nps;
 	uint64_t pixel_salt = mix64(o->seed + 0x9e3779b97f4a7c15u);
 	uint64_t sample_salt = mix64(pixel_salt ^ 0x6a09e667f3bcc909u);
+	uint64_t lens_pixel_salt = mix64(pixel_salt ^ 0xbb67ae8584caa73bu);
+	uint64_t lens_salt = mix64(pixel_salt ^ 0x3c6ef372fe94f82bu);
 	double ixs = 1.0 / xs, iys = 1.0 / ys, in = 1.0 / n;
 
 	for (uint32_t py = h->ry0; py < h->ry1; py++) {
 		for (uint32_t px = h->rx0; px < h->rx1; px++) {
-			/* The pixel's time strata, shuffled (Fisher-Yates). */
-			uint64_t st = key2(px, py, pixel_salt);
-			for (uint32_t k = 0; k < n; k++)
-				h->perm[k] = k;
-			for (uint32_t k = n; k > 1; k--) {
-				st = mix64(st + 0x9e3779b97f4a7c15u);
-				uint32_t r = (uint32_t)(((st >> 32) * k) >> 32);
-				uint32_t tmp = h->perm[k - 1];
-				h->perm[k - 1] = h->perm[r];
-				h->perm[r] = tmp;
-			}
+			/* The pixel's time strata, shuffled, and its lens strata. */
+			shuffle(h->perm, n, key2(px, py, pixel_salt));
+			if (h->dof)
+				shuffle(h->lperm, n, key2(px, py, lens_pixel_salt));
 			for (uint32_t j = 0; j < ys; j++) {
 				uint32_t gy = py * ys + j;
 				struct sample *row = h->samp + (size_t)(gy - h->gy0) * h->sw;
@@ -369,6 +425,20 @@ static void fill_samples(struct reyes_hider *h)
 					s->y = inside_pixel(((double)gy + v) * iys, py);
 					float t = (float)(((double)h->perm[j * xs + i] + w) * in);
 					s->t = t < 1.0f ? t : nextafterf(1.0f, 0.0f);
+					s->lu = s->lv = 0.0f;
+					if (h->dof) {
+						uint32_t c = h->lperm[j * xs + i];
+						double a = 0.5, b = 0.5;
+						if (o->jitter) {
+							uint64_t k = key2(gx, gy, lens_salt);
+							a = ((double)(k >> 32) + 0.5) * (1.0 / 4294967296.0);
+							b = ((double)(k & 0xffffffffu) + 0.5) *
+							    (1.0 / 4294967296.0);
+						}
+						square_to_disk(((double)(c % xs) + a) * ixs,
+							       ((double)(c / xs) + b) * iys, &s->lu,
+							       &s->lv);
+					}
 					s->zopq = INFINITY;
 					s->head = NIL;
 					s->zo[0] = s->zo[1] = INFINITY;
@@ -749,6 +819,12 @@ static float lerpf(float a, float b, float t)
 	return a + (b - a) * t;
 }
 
+/* How far a vertex at depth @z moves per unit of lens position: 1/d - 1/z (0 behind the eye). */
+static float defocus(const struct reyes_hider *h, float z)
+{
+	return z > 0.0f ? h->o.focus - 1.0f / z : 0.0f;
+}
+
 /* Sample index range [lo, hi] of raster interval [a, b] at @ns samples per pixel. */
 static bool sample_range(double a, double b, uint32_t ns, uint32_t g0, uint32_t g1, uint32_t *lo,
 			 uint32_t *hi)
@@ -772,6 +848,51 @@ static void id_overflow(struct reyes_hider *h, const struct reyes_hider_grid *g)
 		g->nu, g->nv, g->id0);
 }
 
+/*
+ * A still quad seen through the lens: each vertex moves by its own
+ * defocus times the sample's lens position. Most samples of the widened
+ * bound miss the quad; a bound of the moved quad from the extremes of the
+ * vertices' moves (with a margin far above rounding) rejects them before
+ * the exact test.
+ */
+static void add_defocused(struct reyes_hider *h, const struct mp_src *m, struct quad *q,
+			  const float vx[4], const float vy[4], const float vz[4], uint32_t sx0,
+			  uint32_t sx1, uint32_t sy0, uint32_t sy1)
+{
+	const struct reyes_hider_grid *g = m->g;
+	float dx[4], dy[4];
+	for (int k = 0; k < 4; k++) {
+		float c = defocus(h, vz[k]);
+		dx[k] = h->o.lens[0] * c;
+		dy[k] = h->o.lens[1] * c;
+	}
+	const float slack = 1e-3f;
+	float x0 = min4(vx) - slack, x1 = max4(vx) + slack;
+	float y0 = min4(vy) - slack, y1 = max4(vy) + slack;
+	float dx0 = min4(dx), dx1 = max4(dx), dy0 = min4(dy), dy1 = max4(dy);
+	for (uint32_t gy = sy0; gy <= sy1; gy++) {
+		struct sample *row = h->samp + (size_t)(gy - h->gy0) * h->sw;
+		for (uint32_t gx = sx0; gx <= sx1; gx++) {
+			struct sample *s = row + (gx - h->gx0);
+			float lu = s->lu, lv = s->lv;
+			float ax = lu >= 0.0f ? lu * dx0 : lu * dx1, bx = lu >= 0.0f ? lu * dx1 : lu * dx0;
+			float ay = lv >= 0.0f ? lv * dy0 : lv * dy1, by = lv >= 0.0f ? lv * dy1 : lv * dy0;
+			if (s->x < x0 + ax || s->x > x1 + bx || s->y < y0 + ay || s->y > y1 + by)
+				continue;
+			float tx[4], ty[4], w[4], z;
+			for (int k = 0; k < 4; k++) {
+				tx[k] = vx[k] + lu * dx[k];
+				ty[k] = vy[k] + lv * dy[k];
+			}
+			float *wp = g->smooth ? w : NULL;
+			if (!quad_init(q, tx, ty, g->cull_backfacing, g->flip) ||
+			    !quad_test(q, s->x, s->y, vz, wp, &z))
+				continue;
+			sample_hit(h, s, z, m, wp);
+		}
+	}
+}
+
 void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 {
 	if (!h || !h->active || !g || g->nu < 2 || g->nv < 2 || !g->x[0] || !g->y[0] ||
@@ -784,7 +905,8 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 	const float *X1 = g->x[1] ? g->x[1] : X0;
 	const float *Y1 = g->y[1] ? g->y[1] : Y0;
 	const float *Z1 = g->z[1] ? g->z[1] : Z0;
-	bool grid_moves = X1 != X0 || Y1 != Y0 || Z1 != Z0;
+	bool dof = h->dof;
+	float lx = o->lens[0], ly = o->lens[1];
 	double rx0 = h->rx0, rx1 = h->rx1, ry0 = h->ry0, ry1 = h->ry1;
 	uint32_t gx1 = h->gx0 + h->sw, gy1 = h->gy0 + h->sh;
 	struct mp_src m = { .g = g, .n = (size_t)g->nu * g->nv };
@@ -808,12 +930,10 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 				vx[k] = X0[p];
 				vy[k] = Y0[p];
 				vz[k] = Z0[p];
-				if (grid_moves) {
-					x1[k] = X1[p];
-					y1[k] = Y1[p];
-					z1[k] = Z1[p];
-					moves |= x1[k] != vx[k] || y1[k] != vy[k] || z1[k] != vz[k];
-				}
+				x1[k] = X1[p];
+				y1[k] = Y1[p];
+				z1[k] = Z1[p];
+				moves |= x1[k] != vx[k] || y1[k] != vy[k] || z1[k] != vz[k];
 			}
 			float xmin = min4(vx), xmax = max4(vx), ymin = min4(vy), ymax = max4(vy);
 			if (moves) {
@@ -822,6 +942,20 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 				xmax = b > xmax ? b : xmax;
 				ymin = c < ymin ? c : ymin;
 				ymax = d > ymax ? d : ymax;
+			}
+			if (dof) {
+				/* 1/z is monotonic along each vertex's path: its extremes are
+				 * at the shutter's ends. */
+				float c = 0.0f;
+				for (int k = 0; k < 4; k++) {
+					float c0 = fabsf(defocus(h, vz[k])), c1 = fabsf(defocus(h, z1[k]));
+					c = c0 > c ? c0 : c;
+					c = c1 > c ? c1 : c;
+				}
+				xmin -= c * lx;
+				xmax += c * lx;
+				ymin -= c * ly;
+				ymax += c * ly;
 			}
 			/* A NaN coordinate can hide in the bound; the edge tests,
 			 * where NaN compares false, reject its samples. */
@@ -837,7 +971,7 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 				continue;
 			}
 
-			if (!moves) {
+			if (!moves && !dof) {
 				if (!quad_init(&q, vx, vy, g->cull_backfacing, g->flip))
 					continue;
 				for (uint32_t gy = sy0; gy <= sy1; gy++) {
@@ -854,7 +988,25 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 				continue;
 			}
 
-			/* Moving: each sample sees the quad at its own time. */
+			if (!moves) {
+				add_defocused(h, &m, &q, vx, vy, vz, sx0, sx1, sy0, sy1);
+				continue;
+			}
+
+			/* Moving (and maybe seen through a lens): each sample sees the
+			 * quad at its own time, from its own lens position. Through a
+			 * lens, the quad at the sample's time with the extremes of its
+			 * vertices' defocus over the shutter (1/z is monotonic along
+			 * each path) bounds it, and rejects most samples cheaply. */
+			float c0 = 0.0f, c1 = 0.0f;
+			if (dof) {
+				c0 = c1 = defocus(h, vz[0]);
+				for (int k = 0; k < 4; k++) {
+					float a = defocus(h, vz[k]), b = defocus(h, z1[k]);
+					c0 = fminf(c0, fminf(a, b));
+					c1 = fmaxf(c1, fmaxf(a, b));
+				}
+			}
 			for (uint32_t gy = sy0; gy <= sy1; gy++) {
 				struct sample *row = h->samp + (size_t)(gy - h->gy0) * h->sw;
 				for (uint32_t gx = sx0; gx <= sx1; gx++) {
@@ -863,8 +1015,32 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 					for (int k = 0; k < 4; k++) {
 						tx[k] = lerpf(vx[k], x1[k], s->t);
 						ty[k] = lerpf(vy[k], y1[k], s->t);
-						tz[k] = lerpf(vz[k], z1[k], s->t);
 					}
+					if (dof) {
+						const float slack = 1e-3f;
+						float ux = s->lu * lx, uy = s->lv * ly;
+						float ax = ux >= 0.0f ? ux * c0 : ux * c1;
+						float bx = ux >= 0.0f ? ux * c1 : ux * c0;
+						float ay = uy >= 0.0f ? uy * c0 : uy * c1;
+						float by = uy >= 0.0f ? uy * c1 : uy * c0;
+						if (s->x < min4(tx) + ax - slack || s->x > max4(tx) + bx + slack ||
+						    s->y < min4(ty) + ay - slack || s->y > max4(ty) + by + slack)
+							continue;
+					}
+					for (int k = 0; k < 4; k++)
+						tz[k] = lerpf(vz[k], z1[k], s->t);
+					if (dof) {
+						for (int k = 0; k < 4; k++) {
+							float c = defocus(h, tz[k]);
+							tx[k] += s->lu * lx * c;
+							ty[k] += s->lv * ly * c;
+						}
+					}
+					/* quad_test's own bound test, before the edges are built:
+					 * most samples of a blurred quad's bound miss it. */
+					if (s->x < min4(tx) || s->x > max4(tx) || s->y < min4(ty) ||
+					    s->y > max4(ty))
+						continue;
 					float *wp = g->smooth ? w : NULL;
 					if (!quad_init(&q, tx, ty, g->cull_backfacing, g->flip) ||
 					    !quad_test(&q, s->x, s->y, tz, wp, &z))

@@ -5,9 +5,11 @@
  * motion blur). A sample keeps the micropolygons it hits sorted by depth and
  * composites them front to back (premultiplied colour, opacity) until it is
  * opaque; pixels are the filter-weighted sum of the samples within the
- * filter's width. Sample positions and times depend only on the sample's
- * place in the image and the seed, so neighbouring buckets (which each
- * sample the filter margin around their pixels) agree exactly.
+ * filter's width. With depth of field each sample also has a lens position,
+ * stratified over the pixel's samples like time. Sample positions, times and
+ * lens positions depend only on the sample's place in the image and the
+ * seed, so neighbouring buckets (which each sample the filter margin around
+ * their pixels) agree exactly.
  */
 #ifndef REYES_HIDER_H
 #define REYES_HIDER_H
@@ -24,6 +26,13 @@ struct reyes_hider_opts {
 	float opacity_threshold;          /* compositing stops at this opacity (all channels) */
 	enum reyes_depthfilter depthfilter;
 	uint32_t naov;                    /* extra channels carried per vertex and per pixel */
+	/* Depth of field (a thin lens): a sample at lens position (lu, lv) of the
+	 * unit disk sees a vertex at camera depth z moved by
+	 * (lu lens[0], lv lens[1]) (focus - 1/z) pixels, where lens[] is the
+	 * aperture radius in raster pixels at unit distance and focus is
+	 * 1 / focaldistance. lens[0] == 0 is a pinhole (no lens samples). */
+	float lens[2];
+	float focus;
 	/* Bake mode (lightspeed-2007 §3.4): record, per pixel, the linear weight of
 	 * every shaded grid vertex that reaches it (reyes_hider_end_record). Grids
 	 * then need no Ci (it may be NULL) and no AOVs; Oi is used as usual. */

@@ -97,7 +97,12 @@ static void xform_normals(float *dst, const float *src, uint32_t n, const float 
 /* ---- the camera ---- */
 
 struct camera {
-	float w2c[16];          /* world -> camera */
+	float w2c[16];          /* world -> camera (at shutter open) */
+	float w2c1[16];         /* at shutter close */
+	bool moving;            /* w2c1 differs from w2c */
+	float lens[2];          /* depth of field: the aperture's radius in pixels at distance 1 */
+	float focus;            /* 1 / the focal distance */
+	float lens_screen;      /* the aperture's radius in screen units at distance 1 */
 	float c2w[16];
 	float c2ndc[16];        /* camera -> NDC (projective) */
 	float screen[4];        /* l r b t */
@@ -110,6 +115,9 @@ struct camera {
 static void setup_camera(struct camera *cam, const struct reyes_options *o)
 {
 	memcpy(cam->w2c, o->world_to_camera, sizeof(cam->w2c));
+	memcpy(cam->w2c1, o->camera_moving ? o->world_to_camera1 : o->world_to_camera,
+	       sizeof(cam->w2c1));
+	cam->moving = memcmp(cam->w2c, cam->w2c1, sizeof(cam->w2c)) != 0;
 	sl_m44_inverse(cam->c2w, cam->w2c);
 	cam->xres = (float)o->xres;
 	cam->yres = (float)o->yres;
@@ -157,6 +165,39 @@ static void setup_camera(struct camera *cam, const struct reyes_options *o)
 	s2n[13] = t / (t - bt);
 	s2n[15] = 1;
 	sl_m44_mul(cam->c2ndc, c2s, s2n);
+
+	/*
+	 * Depth of field: a thin lens of aperture focallength / fstop at the
+	 * eye, focused at focaldistance (camera-space units). Its radius, in
+	 * screen units at unit distance times the screen-to-raster scale, is
+	 * the raster shift per unit of lens position and of (1/d - 1/z); see
+	 * hider.c. A pinhole (no fstop) and the orthographic camera have none.
+	 */
+	cam->lens[0] = cam->lens[1] = cam->lens_screen = 0;
+	cam->focus = 0;
+	if (cam->perspective && o->fstop > 0 && o->focallength > 0 && o->focaldistance > 0) {
+		float radius = 0.5f * o->focallength / o->fstop * cam->focal;
+		cam->lens[0] = radius * cam->xres / fabsf(r - l);
+		cam->lens[1] = radius * cam->yres / fabsf(t - bt);
+		cam->focus = 1 / o->focaldistance;
+		cam->lens_screen = radius;
+		if (!(isfinite(cam->lens[0]) && isfinite(cam->lens[1])))
+			cam->lens[0] = cam->lens[1] = cam->lens_screen = 0;
+	}
+}
+
+/* The largest raster shift the lens gives a point at camera depth in [z0, z1], per axis. */
+static void lens_spread(const struct camera *cam, float z0, float z1, float out[2])
+{
+	out[0] = out[1] = 0;
+	if (cam->lens[0] == 0 && cam->lens[1] == 0)
+		return;
+	/* 1/z is monotonic: the extremes of |1/d - 1/z| are at the ends. */
+	z0 = fmaxf(z0, cam->near);
+	z1 = fmaxf(z1, z0);
+	float c = fmaxf(fabsf(cam->focus - 1 / z0), fabsf(cam->focus - 1 / z1));
+	out[0] = c * cam->lens[0];
+	out[1] = c * cam->lens[1];
 }
 
 /* Camera-space point to raster x, y (false when not in front of the eye). */
@@ -264,7 +305,7 @@ struct render {
 static void obj_to_camera(const struct render *r, const struct reyes_attrs *a, int t,
 			  float m[16])
 {
-	sl_m44_mul(m, a->object_to_world[a->moving ? t : 0], r->cam.w2c);
+	sl_m44_mul(m, a->object_to_world[a->moving ? t : 0], t ? r->cam.w2c1 : r->cam.w2c);
 }
 
 /* Largest scale of the upper 3x3 of @m (to carry an object-space distance to camera space). */
@@ -293,7 +334,11 @@ static enum bound_result piece_bound(const struct render *r, const struct reyes_
 	/*
 	 * Side planes of the view frustum (through the eye, widened by the filter
 	 * margin): a bound with all its corners outside one of them cannot be
-	 * seen, whichever side of the eye plane it lies on.
+	 * seen, whichever side of the eye plane it lies on. Through a lens a
+	 * point at depth z is seen up to lens_screen |1/d - 1/z| further out on
+	 * the screen (lens_screen |z/d - 1| after multiplying by z): outside a
+	 * plane for every lens position is an intersection of half-spaces, so
+	 * still convex, and the corner test still holds.
 	 */
 	const struct camera *cam = &r->cam;
 	float sw = (cam->screen[1] - cam->screen[0]) / cam->xres;
@@ -320,10 +365,11 @@ static enum bound_result piece_bound(const struct render *r, const struct reyes_
 				float q[3] = { c[0] + (g & 1 ? grow : -grow), c[1] + (g & 2 ? grow : -grow),
 					       c[2] + (g & 4 ? grow : -grow) };
 				float w = cam->perspective ? q[2] : 1;
-				outside[0] += fo * q[0] < fl * w;
-				outside[1] += fo * q[0] > fr * w;
-				outside[2] += fo * q[1] < fb * w;
-				outside[3] += fo * q[1] > ft * w;
+				float e = cam->lens_screen * fabsf(q[2] * cam->focus - 1);
+				outside[0] += fo * q[0] + e < fl * w;
+				outside[1] += fo * q[0] - e > fr * w;
+				outside[2] += fo * q[1] + e < fb * w;
+				outside[3] += fo * q[1] - e > ft * w;
 				ncorners++;
 				if (q[2] < zmin)
 					zmin = q[2];
@@ -342,7 +388,7 @@ static enum bound_result piece_bound(const struct render *r, const struct reyes_
 					break;
 			}
 		}
-		if (!a->moving && !reyes_prim_deforms(pa->prim))
+		if (!a->moving && !cam->moving && !reyes_prim_deforms(pa->prim))
 			break;
 	}
 	*zmin_out = zmin;
@@ -353,6 +399,13 @@ static enum bound_result piece_bound(const struct render *r, const struct reyes_
 			return B_CULL;
 	if (straddle || (r->cam.perspective && zmin < r->cam.near))
 		return B_STRADDLE;
+	/* what the lens blurs reaches as far as its widest circle of confusion */
+	float spread[2];
+	lens_spread(cam, zmin, zmax, spread);
+	x0 -= spread[0];
+	x1 += spread[0];
+	y0 -= spread[1];
+	y1 += spread[1];
 	rb[0] = x0;
 	rb[1] = y0;
 	rb[2] = x1;
@@ -1580,6 +1633,7 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 		.jitter = so->jitter, .seed = 1,
 		.opacity_threshold = so->opacity_threshold > 0 ? so->opacity_threshold : 0.996f,
 		.depthfilter = so->depthfilter, .naov = opts->bake ? 0 : r.naov_planes,
+		.lens = { r.cam.lens[0], r.cam.lens[1] }, .focus = r.cam.focus,
 		.record = opts->bake != NULL,
 	};
 	r.ctx = calloc(r.nthreads, sizeof(*r.ctx));

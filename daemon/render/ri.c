@@ -249,6 +249,7 @@ static void options_init(struct ri *ri, struct optstate *s)
 	o->archive_path = ".";
 	o->include_path = ri->default_include_path;
 	sl_m44_identity(o->world_to_camera);
+	sl_m44_identity(o->world_to_camera1);
 	sl_m44_identity(o->camera_to_screen);
 }
 
@@ -404,6 +405,38 @@ static void req_shutter(struct ri *ri, const struct rib_request *r)
 		return;
 	}
 	memcpy(ri->opt.o.shutter, s, sizeof(s));
+}
+
+/*
+ * DepthOfField fstop focallength focaldistance, or DepthOfField alone: a
+ * pinhole camera (as is an fstop of RI_INFINITY, 1e38, or more).
+ */
+static void req_depth_of_field(struct ri *ri, const struct rib_request *r)
+{
+	struct reyes_options *o = &ri->opt.o;
+	float v[3];
+	if (!option_ok(ri, r))
+		return;
+	if (r->nargs == 0) {
+		o->fstop = 0;
+		return;
+	}
+	if (!reyes_ri_float_args(ri, r, 0, 3, v))
+		return;
+	if (v[0] >= 1e30f) {
+		o->fstop = 0;
+		return;
+	}
+	if (!(v[0] > 0 && v[1] > 0 && v[2] > 0 && isfinite(v[1]) && isfinite(v[2])))
+		FAIL(ri, r->loc, "DepthOfField %g %g %g: fstop, focal length and focal distance "
+			   "must be positive", v[0], v[1], v[2]);
+	if (!(v[2] > v[1]))
+		FAIL(ri, r->loc, "DepthOfField: a lens of focal length %g cannot focus at %g "
+			   "(the focal distance must be greater)", v[1], v[2]);
+	o->fstop = v[0];
+	o->focallength = v[1];
+	o->focaldistance = v[2];
+	ri->opt.dof_loc = r->loc;
 }
 
 static void req_pixel_samples(struct ri *ri, const struct rib_request *r)
@@ -1238,10 +1271,20 @@ static void req_world_begin(struct ri *ri, const struct rib_request *r)
 	if (!reyes_ri_depth_ok(ri, r))
 		return;
 	struct reyes_options *o = &ri->opt.o;
-	if (ri->gs.x.moving)
-		reyes_ri_warn(ri, r->loc,
-			      "camera motion is not supported: using the shutter-open camera");
+	/* A MotionBegin of transformations before WorldBegin moves the camera. */
 	memcpy(o->world_to_camera, ri->gs.x.m[0], sizeof(o->world_to_camera));
+	memcpy(o->world_to_camera1, ri->gs.x.m[ri->gs.x.moving ? 1 : 0],
+	       sizeof(o->world_to_camera1));
+	o->camera_moving = ri->gs.x.moving;
+	float close_inv[16];
+	if (o->camera_moving && !sl_m44_inverse(close_inv, o->world_to_camera1))
+		reyes_ri_err(ri, r->loc, "the camera transformation at shutter close is singular");
+	if (o->fstop > 0 && !o->perspective) {
+		reyes_ri_warn(ri, ri->opt.dof_loc,
+			      "DepthOfField needs a perspective projection: the orthographic "
+			      "camera renders in focus");
+		o->fstop = 0;
+	}
 	if (!sl_m44_inverse(ri->w2c_inv, o->world_to_camera))
 		reyes_ri_err(ri, r->loc, "the camera transformation is singular");
 	ri->w2c_mirror = sl_m44_det(o->world_to_camera) < 0;
@@ -2075,6 +2118,7 @@ static const struct handler handlers[] = {
 	{"Projection", req_projection, 0},
 	{"Clipping", req_clipping, 0},
 	{"Shutter", req_shutter, 0},
+	{"DepthOfField", req_depth_of_field, 0},
 	{"PixelSamples", req_pixel_samples, 0},
 	{"PixelVariance", req_ignore, 0},
 	{"PixelFilter", req_pixel_filter, 0},

@@ -165,6 +165,7 @@ struct optstate {
 	struct reyes_options o;        /* displays: an immutable array in perm */
 	bool projection_given;
 	bool quantize_float;           /* Quantize "rgba" 0 ...: float images */
+	struct rib_loc dof_loc;        /* the DepthOfField request in force */
 };
 
 enum blk { BLK_FRAME, BLK_WORLD, BLK_ATTRIBUTE, BLK_TRANSFORM, BLK_MOTION, BLK_OBJECT };

@@ -46,6 +46,7 @@ enum {
 enum {
 	TAKES_PARAMS = 1 << 0,  /* a parameter list follows the positional arguments */
 	BRACKET_OK = 1 << 1,    /* the numbers may also be written as one [ array ] */
+	NONE_OK = 1 << 2,       /* the numbers may also be left out altogether */
 };
 
 /*
@@ -80,6 +81,7 @@ static const struct reqdef reqdefs[] = {
 	{"Projection", "name:s", TAKES_PARAMS},
 	{"Clipping", "near:n far:n", 0},
 	{"Shutter", "opentime:n closetime:n", 0},
+	{"DepthOfField", "fstop:n focallength:n focaldistance:n", NONE_OK},
 	{"PixelSamples", "xsamples:n ysamples:n", 0},
 	{"PixelVariance", "variation:n", 0},
 	{"PixelFilter", "filter:s xwidth:n ywidth:n", 0},
@@ -149,7 +151,7 @@ static const struct reqdef reqdefs[] = {
  */
 static const char *const unsupported[] = {
 	"AreaLightSource", "ArchiveRecord", "Atmosphere", "Blobby", "Bound", "ColorSamples",
-	"Curves", "Deformation", "DepthOfField", "Detail", "DetailRange", "ErrorHandler",
+	"Curves", "Deformation", "Detail", "DetailRange", "ErrorHandler",
 	"Exterior", "GeometricApproximation", "Imager", "Interior", "MakeBump",
 	"Matte", "NuPatch", "Perspective",
 	"Points", "Procedural", "RelativeDetail", "SolidBegin", "SolidEnd",
@@ -929,6 +931,7 @@ static bool check_integer(struct rib_reader *r, const struct reqdef *def, const 
 /*
  * numbers := number { number }          (exactly as many as the request takes)
  *          | '[' number { number } ']'  (requests marked BRACKET_OK)
+ *          | (nothing)                  (requests marked NONE_OK)
  * For requests whose positional arguments are all numbers: the count is
  * checked as a whole, which gives the clearest message.
  */
@@ -963,6 +966,8 @@ static bool parse_number_args(struct rib_reader *r, const struct reqdef *def,
 		got++;
 		advance(r);
 	}
+	if (got == 0 && (def->flags & NONE_OK) && (peek(r) == T_NAME || peek(r) == T_EOF))
+		return true;
 	if (got != nspec) {
 		if (peek(r) == T_ERR)
 			return false;

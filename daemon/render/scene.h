@@ -63,7 +63,11 @@ struct reyes_options {
 	const char *texture_path;
 	const char *archive_path;
 	const char *include_path;       /* where shaders' #include look after their own folder */
-	float world_to_camera[16];      /* the transform at WorldBegin */
+	float world_to_camera[16];      /* the transform at WorldBegin (at shutter open) */
+	float world_to_camera1[16];     /* at shutter close: a moving camera's second sample */
+	bool camera_moving;             /* world_to_camera1 differs from world_to_camera */
+	float fstop;                    /* DepthOfField; 0: none (a pinhole camera) */
+	float focallength, focaldistance;
 	float camera_to_screen[16];     /* projection (from fov or orthographic) */
 };
 

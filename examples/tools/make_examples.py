@@ -226,6 +226,63 @@ FrameEnd
 """ % dict(cam=look_at((0, 1.2, -1.5), (0, 0.5, 3)), floor=quad(0, 5))
 write("examples/motion/motion.rib", motion)
 
+# ---- lens: depth of field and a moving camera ----
+lens = """##RenderMan RIB
+# Depth of field and camera motion: a row of spheres receding along a floor,
+# seen through a lens (f/2.8, focal length 0.35) focused on the third, while
+# the camera slides sideways over the shutter and one sphere moves with it.
+# The floor starts in front of the camera: what lies near the eye plane
+# blurs over the whole frame through a lens, at a cost to match.
+# 4x4 samples. 320x180.
+version 3.04
+FrameBegin 1
+  Format 320 180 1
+  PixelSamples 4 4
+  Shutter 0 1
+  Projection "perspective" "fov" 40
+  DepthOfField 2.8 0.35 5.6
+  Display "lens.exr" "file" "rgba"
+  MotionBegin [0 1]
+    %(cam0)s
+    %(cam1)s
+  MotionEnd
+  WorldBegin
+    LightSource "distantlight" 1 "intensity" 0.8 "from" [-1 2 -1] "to" [0 0 0]
+    LightSource "ambientlight" 2 "intensity" 0.15
+    LightSource "spotlight" 3 "intensity" 30 "from" [1.5 4 1] "to" [0 0 4]
+        "coneangle" 0.5 "conedeltaangle" 0.1
+    Surface "plastic"
+    AttributeBegin
+      Color [0.6 0.6 0.6]
+      %(floor)s
+    AttributeEnd
+%(spheres)s
+    AttributeBegin
+      Color [0.9 0.8 0.2]
+      MotionBegin [0 1]
+        Translate 0.9 0.3 3.2
+        Translate 1.2 0.3 3.2
+      MotionEnd
+      Sphere 0.3 -0.3 0.3 360
+    AttributeEnd
+  WorldEnd
+FrameEnd
+"""
+lens_spheres = []
+for (x, z, r, col) in [(-0.9, 0.8, 0.35, (0.9, 0.3, 0.1)), (-0.3, 2.2, 0.4, (0.2, 0.7, 0.3)),
+                       (0.2, 4, 0.5, (0.2, 0.4, 0.9)), (0.9, 7, 0.6, (0.8, 0.3, 0.7)),
+                       (1.8, 11, 0.8, (0.3, 0.8, 0.8))]:
+    lens_spheres.append("""    AttributeBegin
+      Color [%g %g %g]
+      Translate %g %g %g
+      Sphere %g -%g %g 360
+    AttributeEnd""" % (col + (x, r, z, r, r, r)))
+lens = lens % dict(cam0=look_at((-0.06, 1.0, -1.6), (0.1, 0.4, 4)),
+                   cam1=look_at((0.06, 1.0, -1.6), (0.1, 0.4, 4)),
+                   floor='Polygon "P" [-7 0 0.4  -7 0 16  7 0 16  7 0 0.4]',
+                   spheres="\n".join(lens_spheres))
+write("examples/lens/lens.rib", lens)
+
 # ---- displaced: a displaced sphere on a displaced ground ----
 displaced = """##RenderMan RIB
 # Displacement: noise-displaced sphere and ground (noisebump), with a matching

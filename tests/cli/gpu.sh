@@ -131,6 +131,8 @@ gpu_case crowd crowd.rib 3.from=2,6.5,3 3.to=0.5,0.5,8
 gpu_case crowd crowd.rib 3.coneangle=0.6 3.conedeltaangle=0.15
 gpu_case crowd crowd.rib 2.to=1,-0.5,1.5 4.from=-2,3,9
 gpu_case motion motion.rib 1.intensity=0.5 1.from=-2,3,-1 2.intensity=0.3
+# lens: depth of field and a moving camera; distant 1, ambient 2, spot 3
+gpu_case lens lens.rib 3.intensity=45 3.from=1,4,2 1.intensity=0.5
 gpu_case displaced displaced.rib 1.lightcolor=1,0.8,0.6 2.intensity=2
 gpu_case lights32 lights32.rib 5.from=1,2,3 33.coneangle=0.5 35.intensity=2
 # shadows: ambient 1, shadowspot 2 (key.shd), point 3

@@ -830,6 +830,15 @@ static void test_bad_input(void)
 	b = o;
 	b.filter = (enum reyes_filter)99;
 	CHECK(reyes_hider_create(&b) == NULL);
+	b = o;
+	b.lens[0] = -1;
+	CHECK(reyes_hider_create(&b) == NULL);
+	b = o;
+	b.lens[1] = INFINITY;
+	CHECK(reyes_hider_create(&b) == NULL);
+	b = o;
+	b.focus = NAN;
+	CHECK(reyes_hider_create(&b) == NULL);
 	CHECK(reyes_hider_create(NULL) == NULL);
 	reyes_hider_destroy(NULL);
 
@@ -1091,6 +1100,13 @@ static void test_record_identity(void)
 				o.filter_width[0] = o.filter_width[1] = (float)wi;
 				o.depthfilter = (enum reyes_depthfilter)((f + wi) % 4);
 				o.seed = (uint32_t)(f * 31 + wi * 7 + si);
+				if (si % 2) {
+					/* Through a lens focused at depth 5: the grids, at
+					 * depths 1 to 10, blur by up to 4.8 pixels. */
+					o.lens[0] = 6;
+					o.lens[1] = 5;
+					o.focus = 0.2f;
+				}
 				float *img = image(W, H, 4), *z = image(W, H, 1);
 				render(&o, g, (int)ngrid, 7, 5, img, z, NULL);
 				struct recimg r;
@@ -1135,7 +1151,7 @@ static void test_record_identity(void)
 	       worst, worst_rel, (double)entries / pixels);
 }
 
-/* The same recipes whatever the bucket size (margins sampled alike). */
+/* The same recipes whatever the bucket size (margins sampled alike, lens positions too). */
 static void test_record_buckets(void)
 {
 	uint32_t W = 21, H = 15, ngrid = 12;
@@ -1151,6 +1167,8 @@ static void test_record_buckets(void)
 	o.filter = REYES_FILTER_CATMULLROM;
 	o.filter_width[0] = 3;
 	o.filter_width[1] = 4;
+	o.lens[0] = o.lens[1] = 4;
+	o.focus = 0.25f;
 	struct recimg a, b;
 	render_record(&o, g, (int)ngrid, W, H, &a);
 	static const uint32_t sizes[][2] = { { 1, 1 }, { 4, 3 }, { 16, 16 } };
