@@ -456,6 +456,8 @@ static void add_prim(struct ri *ri, struct reyes_prim *p, const struct xform *x)
 	}
 	struct reyes_prim q = *p;
 	q.attrs = x == &ri->gs.x ? reyes_ri_cur_bundle(ri) : reyes_ri_make_bundle(ri, x);
+	if (!(q.attrs->lod_hi > q.attrs->lod_lo))
+		return;         /* a representation its DetailRange leaves out */
 	q.id = (uint32_t)ri->prims.len;
 	rl_vec_push(ri->prims, q);
 }
@@ -1029,6 +1031,18 @@ static void instance_attrs(struct attrstate *a, const struct attrstate *def)
 	}
 	if (set & OBJ_VISIBILITY)
 		a->casts_shadows = def->casts_shadows;
+	if (set & OBJ_TEXCOORDS) {
+		memcpy(a->texcoords, def->texcoords, sizeof(a->texcoords));
+		a->has_texcoords = def->has_texcoords;
+	}
+	if (set & OBJ_MATTE)
+		a->matte = def->matte;
+	if (set & OBJ_DETAIL) {
+		a->detail = def->detail;
+		a->detail_loc = def->detail_loc;
+		memcpy(a->detail_range, def->detail_range, sizeof(a->detail_range));
+		a->has_detail_range = def->has_detail_range;
+	}
 }
 
 void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
@@ -1072,6 +1086,8 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 			bundle_a = op->identity ? op->a : NULL;
 			bundle = q.attrs;
 		}
+		if (!(q.attrs->lod_hi > q.attrs->lod_lo))
+			continue;
 		q.id = (uint32_t)ri->prims.len;
 		rl_vec_push(ri->prims, q);
 	}

@@ -360,6 +360,33 @@ static void test_strings(void)
 			  "Option@3 \"o\" \"s\"=[\"\" \"x y\" \"#not a comment\" \"[\"]\n");
 }
 
+/*
+ * A string may hold newlines, as prman reads it (a long path or Display name
+ * broken over lines): they are part of the string, and the requests after it
+ * keep their own line numbers, as do errors after it.
+ */
+static void test_strings_over_lines(void)
+{
+	struct run *r = run_text("Display \"long/path/\nto/image.exr\" \"file\" \"rgba\"\n"
+				 "Surface \"s\" \"string map\" [\"a\n\nb\" \"c\"]\n"
+				 "Option \"searchpath\" \"shader\" \"x:\r\n@\"\n"
+				 "WorldBegin\n");
+	CHECK(r->ok);
+	CHECK_STR(r->diag, "");
+	CHECK_STR(r->out, "Display@1 \"long/path/\nto/image.exr\" \"file\" \"rgba\"\n"
+			  "Surface@3 \"s\" \"string map\"=[\"a\n\nb\" \"c\"]\n"
+			  "Option@6 \"searchpath\" \"shader\"=[\"x:\r\n@\"]\n"
+			  "WorldBegin@8\n");
+	/* an error after such a string names its own line */
+	r = run_text("Attribute \"identifier\" \"name\" \"one\ntwo\nthree\"\n"
+		     "Sphere 1 2\nWorldEnd\n");
+	CHECK(!r->ok);
+	CHECK_STR(r->diag,
+		  "t.rib:4: error: Sphere expects 4 numbers before its parameter list, got 2\n");
+	CHECK_STR(r->out, "Attribute@1 \"identifier\" \"name\"=[\"one\ntwo\nthree\"]\n"
+			  "WorldEnd@5\n");
+}
+
 static void test_comments_and_lines(void)
 {
 	const char *text =
@@ -441,8 +468,9 @@ static const struct error_case error_cases[] = {
 	 "t.rib:1: error: expected a parameter name (a string) in Surface's parameter list, "
 	 "got number 1\n",
 	 "WorldEnd@2\n"},
+	/* A string may span lines: a forgotten quote runs to the end of the file. */
 	{"Surface \"plastic\nWorldEnd\n",
-	 "t.rib:1: error: unterminated string\n", "WorldEnd@2\n"},
+	 "t.rib:1: error: truncated file (inside a string)\n", ""},
 	{"Surface \"a\\qb\" \"Kd\" 1\nWorldEnd\n",
 	 "t.rib:1: error: unknown escape '\\q' in string\n", "WorldEnd@2\n"},
 	{"Sphere 1e999 1 1 1\nSphere 1 1 1 -3.5e38\nWorldEnd\n",
@@ -934,6 +962,7 @@ int main(void)
 	RUN(test_all_requests);
 	RUN(test_params_and_types);
 	RUN(test_strings);
+	RUN(test_strings_over_lines);
 	RUN(test_comments_and_lines);
 	RUN(test_bracket_forms);
 	RUN(test_errors);
