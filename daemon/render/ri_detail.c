@@ -154,7 +154,6 @@ void reyes_ri_req_detail(struct ri *ri, const struct rib_request *r)
 	float m[16];
 	sl_m44_mul(m, ri->gs.x.m[0], ri->opt.o.world_to_camera);
 	ri->gs.a.detail = raster_area(&ri->opt.o, m, b);
-	ri->gs.a.detail_loc = reyes_ri_keep_loc(ri, r->loc);
 	ri->gs.a.objset |= OBJ_DETAIL;
 	ri->gs.bundle = NULL;
 }
@@ -170,13 +169,13 @@ void reyes_ri_req_detail_range(struct ri *ri, const struct rib_request *r)
 		     "DetailRange needs minvisible <= lowertransition <= uppertransition <= "
 		     "maxvisible, got %g %g %g %g",
 		     (double)dr[0], (double)dr[1], (double)dr[2], (double)dr[3]);
-	if (ri->gs.a.detail < 0)
+	if (ri->gs.a.detail < 0 && ri->objdef < 0)
 		reyes_ri_warn(ri, r->loc,
 			      "DetailRange without a Detail bound: the representation renders "
 			      "whatever its detail");
 	memcpy(ri->gs.a.detail_range, dr, sizeof(dr));
 	ri->gs.a.has_detail_range = true;
-	ri->gs.a.objset |= OBJ_DETAIL;
+	ri->gs.a.objset |= OBJ_DETAIL_RANGE;
 	ri->gs.bundle = NULL;
 }
 

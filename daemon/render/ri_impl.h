@@ -128,6 +128,7 @@ enum {
 	OBJ_TEXCOORDS = 1 << 11,
 	OBJ_MATTE = 1 << 12,
 	OBJ_DETAIL = 1 << 13,
+	OBJ_DETAIL_RANGE = 1 << 14,
 };
 
 /* The attributes of the graphics state (the transformation aside). */
@@ -151,7 +152,6 @@ struct attrstate {
 	bool has_texcoords;             /* not the default 0 0 1 0 0 1 1 1 */
 	bool matte;
 	float detail;                   /* Detail: the bound's raster area; < 0: none given */
-	struct rib_loc detail_loc;      /* where Detail was given */
 	float detail_range[4];          /* DetailRange minvisible ... maxvisible */
 	bool has_detail_range;
 	unsigned objset;                /* OBJ_*: set since ObjectBegin */

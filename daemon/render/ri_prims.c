@@ -1037,9 +1037,9 @@ static void instance_attrs(struct attrstate *a, const struct attrstate *def)
 	}
 	if (set & OBJ_MATTE)
 		a->matte = def->matte;
-	if (set & OBJ_DETAIL) {
+	if (set & OBJ_DETAIL)
 		a->detail = def->detail;
-		a->detail_loc = def->detail_loc;
+	if (set & OBJ_DETAIL_RANGE) {
 		memcpy(a->detail_range, def->detail_range, sizeof(a->detail_range));
 		a->has_detail_range = def->has_detail_range;
 	}
@@ -1062,6 +1062,7 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 	/* one bundle for a run of primitives under the same recorded attributes */
 	const struct attrstate *bundle_a = NULL;
 	const struct reyes_attrs *bundle = NULL;
+	bool warned = false;
 	for (size_t i = 0; i < o->prims.len; i++) {
 		const struct obj_prim *op = &o->prims.data[i];
 		struct xform x = ri->gs.x;
@@ -1081,6 +1082,12 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 			/* The attributes the definition set, over the instance's. */
 			struct attrstate saved = ri->gs.a;
 			instance_attrs(&ri->gs.a, op->a);
+			if (ri->gs.a.has_detail_range && ri->gs.a.detail < 0 && !warned) {
+				reyes_ri_warn(ri, r->loc,
+					      "object '%s' has a DetailRange but no Detail bound is "
+					      "in effect: every representation renders", handle);
+				warned = true;
+			}
 			q.attrs = reyes_ri_make_bundle(ri, &x);
 			ri->gs.a = saved;
 			bundle_a = op->identity ? op->a : NULL;

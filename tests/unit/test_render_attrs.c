@@ -321,6 +321,36 @@ static const char detail_rib[] =
 	"  AttributeEnd\n"
 	"WorldEnd\n";
 
+/* The same with the representations defined as objects, Detail given at the instances. */
+static const char detail_obj_rib[] =
+	"Format 64 64 1\n"
+	"PixelSamples 4 4\n"
+	"PixelFilter \"box\" 1 1\n"
+	"Projection \"perspective\" \"fov\" 90\n"
+	"Display \"detail.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+	"ObjectBegin \"red\"\n"
+	"  DetailRange 0 0 100 400\n"
+	"  Color [1 0 0]\n"
+	"  Polygon \"P\" [-100 -100 0  100 -100 0  100 100 0  -100 100 0]\n"
+	"ObjectEnd\n"
+	"WorldBegin\n"
+	"  ObjectBegin \"green\"\n"
+	"    DetailRange [100 400 1000 4000]\n"
+	"    Color [0 1 0]\n"
+	"    Polygon \"P\" [-100 -100 0  100 -100 0  100 100 0  -100 100 0]\n"
+	"  ObjectEnd\n"
+	"  Surface \"constant\"\n"
+	"  Translate 0 0 %.9g\n"
+	"  Detail [-1 1 -1 1 0 0]\n"
+	"  ObjectInstance \"red\"\n"
+	"  ObjectInstance \"green\"\n"
+	"  AttributeBegin\n"
+	"    DetailRange 1000 4000 1e38 1e38\n"
+	"    Color [0 0 1]\n"
+	"    Polygon \"P\" [-100 -100 0  100 -100 0  100 100 0  -100 100 0]\n"
+	"  AttributeEnd\n"
+	"WorldEnd\n";
+
 /* RISpec's importance of a representation over [lo0, lo1, hi0, hi1] at detail @d. */
 static double importance(double d, double lo0, double lo1, double hi0, double hi1)
 {
@@ -340,14 +370,17 @@ static double importance(double d, double lo0, double lo1, double hi0, double hi
  * importance of each representation within 0.01 (65536 samples: the
  * binomial spread of a fraction is at most 0.002), and every pixel is
  * covered once, R + G + B = A = 1 within 1e-5, the fading
- * representations sharing the samples without overlap or gap.
+ * representations sharing the samples without overlap or gap. Twice more
+ * with two of the representations objects (one defined outside the world)
+ * whose definitions give the DetailRange and whose instances the Detail.
  */
 static void test_detail(void)
 {
-	static const double zs[] = { 8, 2.56, 0.8, 4.8, 1.2 };
+	static const double zs[] = { 8, 2.56, 0.8, 4.8, 1.2, 2.56, 4.8 };
 	for (size_t k = 0; k < sizeof(zs) / sizeof(zs[0]); k++) {
 		char rib[4096];
-		snprintf(rib, sizeof(rib), detail_rib, zs[k]);
+		bool objects = k >= 5;
+		snprintf(rib, sizeof(rib), objects ? detail_obj_rib : detail_rib, zs[k]);
 		struct reyes_image im = { 0 };
 		CHECK(render(rib, "detail.exr", &im));
 		int ch[4];
@@ -371,9 +404,12 @@ static void test_detail(void)
 				worst_sum = fmax(worst_sum, fabs(sum - 1));
 				worst_sum = fmax(worst_sum, fabs(px(&im, ch[3], x, y) - 1));
 			}
-		printf("detail %.1f (z %.2g): mean %.4f %.4f %.4f, expected %.4f %.4f %.4f "
+		printf("%sdetail %.1f (z %.2g): mean %.4f %.4f %.4f, expected %.4f %.4f %.4f "
 		       "(tolerance 0.01); worst |R+G+B-1|, |A-1| %.2g (tolerance 1e-5)\n",
-		       d, zs[k], mean[0], mean[1], mean[2], want[0], want[1], want[2], worst_sum);
+		       objects ? "objects, " : "", d, zs[k], mean[0], mean[1], mean[2], want[0],
+		       want[1], want[2], worst_sum);
+		if (objects)
+			CHECK_STR(diag_text, "");
 		for (int c = 0; c < 3; c++)
 			CHECK_NEAR(mean[c], want[c], 0.01);
 		CHECK(worst_sum <= 1e-5);
@@ -438,6 +474,55 @@ static void test_geometric_requests(void)
 		reyes_image_finish(&im[k]);
 }
 
+/*
+ * Malformed requests are errors at their line, and the frame is not
+ * rendered; requests that cannot mean anything where they are are warnings.
+ */
+static void test_bad_requests(void)
+{
+	static const struct {
+		const char *req, *diag;
+	} cases[] = {
+		{ "DetailRange 0 10 5 20",
+		  "scene.rib:3: error: DetailRange needs minvisible <= lowertransition <= "
+		  "uppertransition <= maxvisible, got 0 10 5 20\n" },
+		{ "Detail [-1 1 -1 1 0]",
+		  "scene.rib:3: error: Detail expects a bound of 6 numbers, got 5\n" },
+		{ "Detail [1 -1 -1 1 0 0]",
+		  "scene.rib:3: error: Detail: the bound's minimum 1 is above its maximum -1\n" },
+		{ "GeometricApproximation \"flatness\" -1",
+		  "scene.rib:3: error: GeometricApproximation \"flatness\" must not be negative, "
+		  "got -1\n" },
+		{ "TextureCoordinates 0 0 1 0 0 1 1",
+		  "scene.rib:3: error: TextureCoordinates expects 8 numbers, got 7\n" },
+	};
+	for (size_t k = 0; k < sizeof(cases) / sizeof(cases[0]); k++) {
+		char rib[1024];
+		snprintf(rib, sizeof(rib),
+			 "Display \"bad.exr\" \"file\" \"rgba\"\n"
+			 "WorldBegin\n"
+			 "%s\n"
+			 "Sphere 1 -1 1 360\n"
+			 "WorldEnd\n", cases[k].req);
+		unlink(tmp_path("bad.exr"));
+		struct reyes_image im = { 0 };
+		CHECK(!render(rib, "bad.exr", &im));
+		const char *d = strstr(diag_text, "scene.rib:");
+		CHECK_STR(d, cases[k].diag);
+		CHECK(access(tmp_path("bad.exr"), F_OK) != 0);
+		reyes_image_finish(&im);
+	}
+	struct reyes_image im = { 0 };
+	CHECK(render("Detail [-1 1 -1 1 -1 1]\nDisplay \"w.exr\" \"file\" \"rgba\"\n"
+		     "WorldBegin\nDetailRange 0 0 10 20\nSphere 1 -1 1 360\nWorldEnd\n",
+		     "w.exr", &im));
+	CHECK(strstr(diag_text, "scene.rib:1: warning: Detail outside WorldBegin/WorldEnd is "
+				"ignored") != NULL);
+	CHECK(strstr(diag_text, "scene.rib:4: warning: DetailRange without a Detail bound") !=
+	      NULL);
+	reyes_image_finish(&im);
+}
+
 int main(void)
 {
 	snprintf(tmpdir, sizeof(tmpdir), "/tmp/relight-attrs-XXXXXX");
@@ -449,6 +534,7 @@ int main(void)
 	RUN(test_matte);
 	RUN(test_detail);
 	RUN(test_geometric_requests);
+	RUN(test_bad_requests);
 	if (getenv("RELIGHT_KEEP_TMP"))
 		return test_finish();
 	char cmd[600];
