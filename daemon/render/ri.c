@@ -250,6 +250,7 @@ static void options_init(struct ri *ri, struct optstate *s)
 	o->include_path = ri->default_include_path;
 	sl_m44_identity(o->world_to_camera);
 	sl_m44_identity(o->camera_to_screen);
+	s->relative_detail = 1;
 }
 
 /* Would this request change an option? They must come before WorldBegin. */
@@ -2135,6 +2136,7 @@ static const struct handler handlers[] = {
 	{"TextureCoordinates", reyes_ri_req_texture_coordinates, 0},
 	{"Matte", reyes_ri_req_matte, 0},
 	{"Detail", reyes_ri_req_detail, 0},
+	{"RelativeDetail", reyes_ri_req_relative_detail, 0},
 	{"DetailRange", reyes_ri_req_detail_range, 0},
 	{"GeometricApproximation", reyes_ri_req_geometric_approximation, 0},
 	{"GeometricRepresentation", reyes_ri_req_geometric_representation, 0},

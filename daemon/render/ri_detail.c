@@ -1,12 +1,12 @@
 /*
- * Level of detail and the attributes of how geometry is seen: Detail and
- * DetailRange (which representation of an object renders, with RISpec's
- * cross-fades), TextureCoordinates, Matte, GeometricApproximation and
- * GeometricRepresentation.
+ * Level of detail and the attributes of how geometry is seen: Detail,
+ * RelativeDetail and DetailRange (which representation of an object
+ * renders, with RISpec's cross-fades), TextureCoordinates, Matte,
+ * GeometricApproximation and GeometricRepresentation.
  *
  * Detail is measured where it is given: the raster area of the bound's
- * projection (the rectangle around its eight corners on the image; infinite
- * when a corner is at or behind the eye). DetailRange turns it into the
+ * projection (the rectangle around the box clipped to the near plane, not
+ * to the screen), times RelativeDetail. DetailRange turns it into the
  * representation's importance, 0 outside [minvisible, maxvisible], rising
  * linearly to 1 over [minvisible, lowertransition], 1 up to
  * uppertransition, falling linearly to 0 at maxvisible. An importance f
@@ -96,34 +96,71 @@ static void screen_window(const struct reyes_options *o, float w[4])
 	memcpy(w, fa >= 1 ? s : t, sizeof(s));
 }
 
+/* Raster x, y of camera-space point @c (in front of the eye when perspective). */
+static void to_raster(const struct reyes_options *o, const float win[4], double d,
+		      const double c[3], double *rx, double *ry)
+{
+	double sx = c[0], sy = c[1];
+	if (o->perspective) {
+		sx = d * c[0] / c[2];
+		sy = d * c[1] / c[2];
+	}
+	*rx = (sx - win[0]) / (win[1] - win[0]) * o->xres;
+	*ry = (win[3] - sy) / (win[3] - win[2]) * o->yres;
+}
+
 /*
- * The raster area of the rectangle around the projections of the corners
- * of @b (xmin xmax ymin ymax zmin zmax in the space @m takes to camera
- * space); infinite when a corner is not in front of the eye.
+ * RISpec's detail of bound @b (xmin xmax ymin ymax zmin zmax in the space @m
+ * takes to camera space): the raster area of the rectangle around the
+ * projection of the box clipped to the near plane (not to the screen, so
+ * that the detail grows smoothly as the camera closes in; nor to the far
+ * plane). The clipped box's corners are the box's corners in front of the
+ * plane and the points where its edges cross it. 0 when none of it is in
+ * front of the near plane.
  */
 static float raster_area(const struct reyes_options *o, const float m[16], const float b[6])
 {
 	float win[4];
 	screen_window(o, win);
 	double d = o->perspective ? 1 / tan(o->fov * (PI_D / 360)) : 1;
-	double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+	double near = o->perspective ? fmax(o->clip_near, 1e-10) : -INFINITY;
+	double c[8][3];
 	for (int k = 0; k < 8; k++) {
-		float p[3] = {b[k & 1], b[2 + (k >> 1 & 1)], b[4 + (k >> 2)]}, c[3];
-		sl_xform_point(c, m, p);
-		double sx = c[0], sy = c[1];
-		if (o->perspective) {
-			if (!(c[2] > o->clip_near) || !(c[2] > 0))
-				return INFINITY;
-			sx = d * c[0] / c[2];
-			sy = d * c[1] / c[2];
-		}
-		double rx = (sx - win[0]) / (win[1] - win[0]) * o->xres;
-		double ry = (win[3] - sy) / (win[3] - win[2]) * o->yres;
-		x0 = fmin(x0, rx);
-		x1 = fmax(x1, rx);
-		y0 = fmin(y0, ry);
-		y1 = fmax(y1, ry);
+		float p[3] = {b[k & 1], b[2 + (k >> 1 & 1)], b[4 + (k >> 2)]}, q[3];
+		sl_xform_point(q, m, p);
+		for (int a = 0; a < 3; a++)
+			c[k][a] = q[a];
 	}
+	double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+	int n = 0;
+	for (int k = 0; k < 8; k++) {
+		double pts[4][3];
+		int np = 0;
+		if (c[k][2] >= near)
+			memcpy(pts[np++], c[k], sizeof(pts[0]));
+		/* the edges from corner k to the corners that differ in one bit above it */
+		for (int bit = 1; bit < 8; bit <<= 1) {
+			if (k & bit)
+				continue;
+			const double *e0 = c[k], *e1 = c[k | bit];
+			if ((e0[2] < near) == (e1[2] < near))
+				continue;
+			double t = (near - e0[2]) / (e1[2] - e0[2]);
+			for (int a = 0; a < 3; a++)
+				pts[np][a] = e0[a] + t * (e1[a] - e0[a]);
+			pts[np++][2] = near;
+		}
+		for (int i = 0; i < np; i++, n++) {
+			double rx, ry;
+			to_raster(o, win, d, pts[i], &rx, &ry);
+			x0 = fmin(x0, rx);
+			x1 = fmax(x1, rx);
+			y0 = fmin(y0, ry);
+			y1 = fmax(y1, ry);
+		}
+	}
+	if (!n)
+		return 0;
 	double area = (x1 - x0) * (y1 - y0);
 	return isfinite(area) && area < FLT_MAX ? (float)area : INFINITY;
 }
@@ -131,11 +168,8 @@ static float raster_area(const struct reyes_options *o, const float m[16], const
 /* Detail [xmin xmax ymin ymax zmin zmax] */
 void reyes_ri_req_detail(struct ri *ri, const struct rib_request *r)
 {
-	const struct rib_value *v = &r->args[0];
 	float b[6];
-	if (v->n != 6)
-		FAIL(ri, r->loc, "Detail expects a bound of 6 numbers, got %u", (unsigned)v->n);
-	if (!reyes_ri_value_floats(ri, v, r->loc, "Detail", b))
+	if (!reyes_ri_float_args(ri, r, 0, 6, b))
 		return;
 	for (int k = 0; k < 3; k++)
 		if (!(b[2 * k] <= b[2 * k + 1]))
@@ -153,9 +187,23 @@ void reyes_ri_req_detail(struct ri *ri, const struct rib_request *r)
 			      "is defined, not at each ObjectInstance");
 	float m[16];
 	sl_m44_mul(m, ri->gs.x.m[0], ri->opt.o.world_to_camera);
-	ri->gs.a.detail = raster_area(&ri->opt.o, m, b);
+	float area = raster_area(&ri->opt.o, m, b) * ri->opt.relative_detail;
+	ri->gs.a.detail = isfinite(area) ? area : INFINITY;
 	ri->gs.a.objset |= OBJ_DETAIL;
 	ri->gs.bundle = NULL;
+}
+
+/* RelativeDetail relativedetail */
+void reyes_ri_req_relative_detail(struct ri *ri, const struct rib_request *r)
+{
+	float v;
+	if (!reyes_ri_float_args(ri, r, 0, 1, &v))
+		return;
+	if (ri->world)
+		FAIL(ri, r->loc, "RelativeDetail is an option: it must come before WorldBegin");
+	if (!(v > 0))
+		FAIL(ri, r->loc, "RelativeDetail must be positive, got %g", (double)v);
+	ri->opt.relative_detail = v;
 }
 
 /* DetailRange minvisible lowertransition uppertransition maxvisible */

@@ -175,6 +175,7 @@ struct optstate {
 	struct reyes_options o;        /* displays: an immutable array in perm */
 	bool projection_given;
 	bool quantize_float;           /* Quantize "rgba" 0 ...: float images */
+	float relative_detail;         /* RelativeDetail: scales every Detail (default 1) */
 };
 
 enum blk { BLK_FRAME, BLK_WORLD, BLK_ATTRIBUTE, BLK_TRANSFORM, BLK_MOTION, BLK_OBJECT };
@@ -409,6 +410,9 @@ void reyes_ri_req_matte(struct ri *ri, const struct rib_request *r);
 
 /** Detail: the bound whose raster area selects representations. */
 void reyes_ri_req_detail(struct ri *ri, const struct rib_request *r);
+
+/** RelativeDetail: the option that scales every Detail's raster area. */
+void reyes_ri_req_relative_detail(struct ri *ri, const struct rib_request *r);
 
 /** DetailRange: the detail over which the representation that follows is seen. */
 void reyes_ri_req_detail_range(struct ri *ri, const struct rib_request *r);

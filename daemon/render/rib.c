@@ -105,7 +105,8 @@ static const struct reqdef reqdefs[] = {
 	{"Declare", "name:s declaration:s", 0},
 	{"TextureCoordinates", "s1:n t1:n s2:n t2:n s3:n t3:n s4:n t4:n", BRACKET_OK},
 	{"Matte", "onoff:i", 0},
-	{"Detail", "bound:a", 0},
+	{"Detail", "minx:n maxx:n miny:n maxy:n minz:n maxz:n", BRACKET_OK},
+	{"RelativeDetail", "relativedetail:n", 0},
 	{"DetailRange", "minvisible:n lowertransition:n uppertransition:n maxvisible:n",
 	 BRACKET_OK},
 	{"GeometricApproximation", "type:s value:n", 0},
@@ -155,7 +156,7 @@ static const char *const unsupported[] = {
 	"Curves", "Deformation", "DepthOfField", "ErrorHandler",
 	"Exterior", "Imager", "Interior", "MakeBump",
 	"MakeCubeFaceEnvironment", "MakeLatLongEnvironment", "NuPatch", "Perspective",
-	"Points", "Procedural", "RelativeDetail", "SolidBegin", "SolidEnd",
+	"Points", "Procedural", "SolidBegin", "SolidEnd",
 	"SubdivisionMesh", "TrimCurve",
 };
 

@@ -1,8 +1,9 @@
 /*
  * The attributes of how geometry is seen, rendered end to end against
- * closed forms: TextureCoordinates, Matte, Detail and DetailRange (the
- * representation each camera distance picks and the cross-fade between
- * two), GeometricApproximation and GeometricRepresentation (accepted, or
+ * closed forms: TextureCoordinates, Matte, Detail, RelativeDetail and
+ * DetailRange (the representation each camera distance picks, the
+ * cross-fade between two, the near-plane clipping of the bound),
+ * GeometricApproximation and GeometricRepresentation (accepted, or
  * reported with the line), and a RIB string spanning lines.
  */
 #include "reyes.h"
@@ -417,6 +418,75 @@ static void test_detail(void)
 	}
 }
 
+/*
+ * How the detail is measured: two representations, red fading out and
+ * green in over [T0, T1], filling the 64x64 view (fov 90), their mean colour
+ * against the closed-form importance within 0.01 as above.
+ *  - RelativeDetail 4 scales the square of side 2 at z = 8 (64 pixels) to 256.
+ *  - The cube of side 2 at z = 1.5 with Clipping 1 is clipped to the near
+ *    plane: its front face there is 64 pixels wide, 4096 (unclipped, at
+ *    z = 0.5, it would be 16384).
+ *  - The camera inside the cube (z = 0.5, Clipping 0.25): clipped at 0.25,
+ *    the face is 256 pixels wide, 65536.
+ */
+static void test_detail_measure(void)
+{
+	static const struct {
+		const char *options, *bound;
+		double z, t0, t1, detail;
+	} cases[] = {
+		{ "RelativeDetail 4", "-1 1 -1 1 0 0", 8, 100, 400, 256 },
+		{ "Clipping 1 100", "-1 1 -1 1 -1 1", 1.5, 2048, 6144, 4096 },
+		{ "Clipping 0.25 100", "-1 1 -1 1 -1 1", 0.5, 32768, 98304, 65536 },
+	};
+	for (size_t k = 0; k < sizeof(cases) / sizeof(cases[0]); k++) {
+		char rib[4096];
+		snprintf(rib, sizeof(rib),
+			 "Format 64 64 1\n"
+			 "PixelSamples 4 4\n"
+			 "PixelFilter \"box\" 1 1\n"
+			 "Projection \"perspective\" \"fov\" 90\n"
+			 "%s\n"
+			 "Display \"measure.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+			 "WorldBegin\n"
+			 "  Surface \"constant\"\n"
+			 "  Translate 0 0 %g\n"
+			 "  Detail %s\n"
+			 "  AttributeBegin\n"
+			 "    DetailRange 0 0 %g %g\n"
+			 "    Color [1 0 0]\n"
+			 "    Polygon \"P\" [-100 -100 0  100 -100 0  100 100 0  -100 100 0]\n"
+			 "  AttributeEnd\n"
+			 "  AttributeBegin\n"
+			 "    DetailRange %g %g 1e38 1e38\n"
+			 "    Color [0 1 0]\n"
+			 "    Polygon \"P\" [-100 -100 0  100 -100 0  100 100 0  -100 100 0]\n"
+			 "  AttributeEnd\n"
+			 "WorldEnd\n", cases[k].options, cases[k].z, cases[k].bound, cases[k].t0,
+			 cases[k].t1, cases[k].t0, cases[k].t1);
+		struct reyes_image im = { 0 };
+		CHECK(render(rib, "measure.exr", &im));
+		int ch[4];
+		if (!im.data || !rgba_channels(&im, ch)) {
+			reyes_image_finish(&im);
+			continue;
+		}
+		double want_g = importance(cases[k].detail, cases[k].t0, cases[k].t1, 1e38, 1e38);
+		double mean[2] = { 0 };
+		size_t npx = (size_t)im.width * im.height;
+		for (uint32_t y = 0; y < im.height; y++)
+			for (uint32_t x = 0; x < im.width; x++)
+				for (int c = 0; c < 2; c++)
+					mean[c] += px(&im, ch[c], x, y) / (double)npx;
+		printf("%s, Detail [%s] at z %g: detail %g, mean red %.4f green %.4f, expected "
+		       "%.4f %.4f (tolerance 0.01)\n", cases[k].options, cases[k].bound,
+		       cases[k].z, cases[k].detail, mean[0], mean[1], 1 - want_g, want_g);
+		CHECK_NEAR(mean[0], 1 - want_g, 0.01);
+		CHECK_NEAR(mean[1], want_g, 0.01);
+		reyes_image_finish(&im);
+	}
+}
+
 /* ---- GeometricApproximation, GeometricRepresentation, strings over lines -------- */
 
 /*
@@ -487,12 +557,15 @@ static void test_bad_requests(void)
 		  "scene.rib:3: error: DetailRange needs minvisible <= lowertransition <= "
 		  "uppertransition <= maxvisible, got 0 10 5 20\n" },
 		{ "Detail [-1 1 -1 1 0]",
-		  "scene.rib:3: error: Detail expects a bound of 6 numbers, got 5\n" },
+		  "scene.rib:3: error: Detail expects 6 numbers, got an array of 5 numbers\n" },
 		{ "Detail [1 -1 -1 1 0 0]",
 		  "scene.rib:3: error: Detail: the bound's minimum 1 is above its maximum -1\n" },
 		{ "GeometricApproximation \"flatness\" -1",
 		  "scene.rib:3: error: GeometricApproximation \"flatness\" must not be negative, "
 		  "got -1\n" },
+		{ "RelativeDetail 2",
+		  "scene.rib:3: error: RelativeDetail is an option: it must come before "
+		  "WorldBegin\n" },
 		{ "TextureCoordinates 0 0 1 0 0 1 1",
 		  "scene.rib:3: error: TextureCoordinates expects 8 numbers, got 7\n" },
 	};
@@ -533,6 +606,7 @@ int main(void)
 	RUN(test_texture_coordinates);
 	RUN(test_matte);
 	RUN(test_detail);
+	RUN(test_detail_measure);
 	RUN(test_geometric_requests);
 	RUN(test_bad_requests);
 	if (getenv("RELIGHT_KEEP_TMP"))
