@@ -177,6 +177,14 @@ static const char all_requests_rib[] =
 	"WorldEnd\n"
 	"MakeTexture \"in.tif\" \"out.tx\" \"periodic\" \"clamp\" \"gaussian\" 2 2 \"fov\" 1\n"
 	"MakeShadow \"depth.z\" \"shadow.tx\"\n"
+	"TextureCoordinates [0 0 2 0 0 2 2 2]\n"
+	"Matte 1\n"
+	"Detail -1 1 -1 1 0 0\n"
+	"Detail [-1 1 -1 1 0 1]\n"
+	"DetailRange 0 0 10 20\n"
+	"RelativeDetail 0.5\n"
+	"GeometricApproximation \"flatness\" 0.5\n"
+	"GeometricRepresentation \"primitive\"\n"                /* 81 */
 	"FrameEnd\n";
 
 static const char all_requests_out[] =
@@ -253,7 +261,15 @@ static const char all_requests_out[] =
 	"WorldEnd@71\n"
 	"MakeTexture@72 \"in.tif\" \"out.tx\" \"periodic\" \"clamp\" \"gaussian\" 2 2 \"fov\"=[1]\n"
 	"MakeShadow@73 \"depth.z\" \"shadow.tx\"\n"
-	"FrameEnd@74\n";
+	"TextureCoordinates@74 0 0 2 0 0 2 2 2\n"
+	"Matte@75 1\n"
+	"Detail@76 -1 1 -1 1 0 0\n"
+	"Detail@77 -1 1 -1 1 0 1\n"
+	"DetailRange@78 0 0 10 20\n"
+	"RelativeDetail@79 0.5\n"
+	"GeometricApproximation@80 \"flatness\" 0.5\n"
+	"GeometricRepresentation@81 \"primitive\"\n"
+	"FrameEnd@82\n";
 
 /* The requests the reader must know: the table, exactly. */
 static const char *const table_names[] = {
@@ -268,6 +284,8 @@ static const char *const table_names[] = {
 	"ObjectBegin", "ObjectEnd", "ObjectInstance", "ReadArchive", "MakeTexture", "MakeShadow",
 	"Sphere", "Cylinder", "Cone", "Disk", "Hyperboloid", "Paraboloid", "Torus", "Polygon",
 	"GeneralPolygon", "PointsPolygons", "PointsGeneralPolygons", "Patch", "PatchMesh",
+	"TextureCoordinates", "Matte", "Detail", "DetailRange", "RelativeDetail",
+	"GeometricApproximation", "GeometricRepresentation",
 };
 
 static void test_all_requests(void)
@@ -277,7 +295,7 @@ static void test_all_requests(void)
 	CHECK(r->nerrors == 0);
 	CHECK_STR(r->diag, "");
 	CHECK_STR(r->out, all_requests_out);
-	CHECK(r->count == 74);
+	CHECK(r->count == 82);
 	/* Each table name is in the input (so parsed above) as a whole word at a line start. */
 	for (size_t i = 0; i < sizeof(table_names) / sizeof(table_names[0]); i++) {
 		char key[64];
