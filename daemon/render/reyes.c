@@ -1163,7 +1163,7 @@ static bool shade_job(struct tctx *t, struct job *job)
 	sh->hg.cull_backfacing = a->sides == 1;
 	sh->hg.flip = a->flip_normals;
 	sh->hg.matte = a->matte;
-	sh->hg.dissolve = a->lod_lo > 0 || a->lod_hi < 1;
+	sh->hg.dissolve = a->dissolve;
 	sh->hg.lod_lo = a->lod_lo;
 	sh->hg.lod_hi = a->lod_hi;
 	job->sh = sh;

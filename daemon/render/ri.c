@@ -782,8 +782,10 @@ const struct reyes_attrs *reyes_ri_make_bundle(struct ri *ri, const struct xform
 		memcpy(tc, a->texcoords, sizeof(a->texcoords));
 		b->texcoords = tc;
 	}
+	/* a representation its DetailRange leaves out is dropped (lod_hi 0) */
 	if (!reyes_ri_detail_visible(a, &b->lod_lo, &b->lod_hi))
 		b->lod_lo = b->lod_hi = 0;
+	b->dissolve = b->lod_lo > 0 || b->lod_hi < 1;
 	b->moving = x->moving;
 	memcpy(b->object_to_world, x->m, sizeof(b->object_to_world));
 	return b;

@@ -456,7 +456,7 @@ static void add_prim(struct ri *ri, struct reyes_prim *p, const struct xform *x)
 	}
 	struct reyes_prim q = *p;
 	q.attrs = x == &ri->gs.x ? reyes_ri_cur_bundle(ri) : reyes_ri_make_bundle(ri, x);
-	if (!(q.attrs->lod_hi > q.attrs->lod_lo))
+	if (q.attrs->dissolve && !(q.attrs->lod_hi > q.attrs->lod_lo))
 		return;         /* a representation its DetailRange leaves out */
 	q.id = (uint32_t)ri->prims.len;
 	rl_vec_push(ri->prims, q);
@@ -1093,7 +1093,7 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 			bundle_a = op->identity ? op->a : NULL;
 			bundle = q.attrs;
 		}
-		if (!(q.attrs->lod_hi > q.attrs->lod_lo))
+		if (q.attrs->dissolve && !(q.attrs->lod_hi > q.attrs->lod_lo))
 			continue;
 		q.id = (uint32_t)ri->prims.len;
 		rl_vec_push(ri->prims, q);
