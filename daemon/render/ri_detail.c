@@ -47,16 +47,16 @@ bool reyes_ri_detail_visible(const struct attrstate *a, float *lo, float *hi)
 	bool unbounded = dr[3] >= DETAIL_INFINITE;
 	if (d < dr[0] || (d > dr[3] && !unbounded))
 		return false;
+	/* 1 - f on the rising side, computed as f is on the falling side of the
+	   range that fades out over the same interval: bit for bit the same
+	   bound, so the two representations share the samples exactly. */
 	if (d < dr[1]) {
-		float f = (d - dr[0]) / (dr[1] - dr[0]);
-		if (!(f > 0))
-			return false;
-		*lo = 1 - f;
-	} else if (d > dr[2] && !unbounded) {
-		float f = (dr[3] - d) / (dr[3] - dr[2]);
-		if (!(f > 0))
-			return false;
-		*hi = f;
+		*lo = (dr[1] - d) / (dr[1] - dr[0]);
+		return *lo < 1;
+	}
+	if (d > dr[2] && !unbounded) {
+		*hi = (dr[3] - d) / (dr[3] - dr[2]);
+		return *hi > 0;
 	}
 	return true;
 }
