@@ -10,7 +10,7 @@
  * representation's importance, 0 outside [minvisible, maxvisible], rising
  * linearly to 1 over [minvisible, lowertransition], 1 up to
  * uppertransition, falling linearly to 0 at maxvisible. An importance f
- * below 1 is a dissolve, as prman renders it: on the rising side the
+ * below 1 is a dissolve, a stochastic cross-fade: on the rising side the
  * subpixel samples whose dissolve number is in [1 - f, 1) see the
  * primitive, on the falling side those in [0, f), so the representation
  * fading out and the one fading in over the same detail share the samples
@@ -228,10 +228,10 @@ void reyes_ri_req_detail_range(struct ri *ri, const struct rib_request *r)
 }
 
 /*
- * GeometricApproximation "flatness" V | "motionfactor" V. Grids are diced
- * to micropolygons of ShadingRate area, a pixel or less, which deviate from
- * the true surface by much less than a pixel: flatness asks for nothing
- * more. Motion factor (prman's coarser shading of fast motion) is a saving
+ * GeometricApproximation "flatness" V | "motionfactor" V. The tessellation
+ * is set by ShadingRate alone: micropolygons of that many pixels' area,
+ * which at the usual rates deviate from the true surface by far less than
+ * any useful flatness. Motion factor (prman's coarser shading of fast motion) is a saving
  * this renderer does not make; the image is the one without it.
  */
 void reyes_ri_req_geometric_approximation(struct ri *ri, const struct rib_request *r)
