@@ -174,6 +174,52 @@ static void test_texture_coordinates(void)
 		reyes_image_finish(&im);
 	}
 
+	/*
+	 * A quadric: a Disk of radius 1 (r = 1 - v, RISpec's parametrisation)
+	 * under TextureCoordinates 0 0.3 0 0.3 1 0.3 1 0.3, that is s = v and
+	 * t = 0.3: R is 1 - r at the pixel's centre within 0.01 over the ring
+	 * 0.2 < r < 0.9 (a pixel averages a function linear in r, curved only
+	 * near the centre), G 0.3 everywhere on it.
+	 */
+	{
+		char rib[2048];
+		snprintf(rib, sizeof(rib),
+			 "Option \"searchpath\" \"shader\" \"%s:@\"\n"
+			 "Format 32 32 1\n"
+			 "PixelSamples 4 4\n"
+			 "PixelFilter \"box\" 1 1\n"
+			 "Projection \"orthographic\"\n"
+			 "Display \"disk.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+			 "WorldBegin\n"
+			 "  Translate 0 0 5\n"
+			 "  ShadingRate 0.25\n"
+			 "  ShadingInterpolation \"smooth\"\n"
+			 "  Surface \"showst\"\n"
+			 "  TextureCoordinates [0 0.3 0 0.3 1 0.3 1 0.3]\n"
+			 "  Disk 0 1 360\n"
+			 "WorldEnd\n", tmpdir);
+		struct reyes_image im = { 0 };
+		CHECK(render(rib, "disk.exr", &im));
+		int ch[4];
+		if (im.data && rgba_channels(&im, ch)) {
+			double worst = 0;
+			for (uint32_t y = 0; y < im.height; y++)
+				for (uint32_t x = 0; x < im.width; x++) {
+					double X = -1 + 2 * (x + 0.5) / im.width;
+					double Y = 1 - 2 * (y + 0.5) / im.height;
+					double rr = hypot(X, Y);
+					if (rr <= 0.2 || rr >= 0.9)
+						continue;
+					worst = fmax(worst, fabs(px(&im, ch[0], x, y) - (1 - rr)));
+					worst = fmax(worst, fabs(px(&im, ch[1], x, y) - 0.3));
+				}
+			printf("TextureCoordinates on a Disk: worst error %.4f (tolerance 0.01)\n",
+			       worst);
+			CHECK(worst <= 0.01);
+		}
+		reyes_image_finish(&im);
+	}
+
 	/* A Polygon keeps its own s, t whatever TextureCoordinates says. */
 	const char *poly = "Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]";
 	struct reyes_image a = { 0 }, b = { 0 };
