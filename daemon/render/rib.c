@@ -505,6 +505,12 @@ static enum tok lex_string(struct rib_reader *r)
 	r->str.len = 0;
 	for (;;) {
 		int c = getc_(r);
+		if (c == EOF && r->line > start && !r->src_failed)
+			/* most likely a forgotten closing quote: say where it opened */
+			return lex_fail(r, start,
+					"unterminated string: it runs from here over %u lines to the "
+					"end of the file",
+					(unsigned)(r->line - start));
 		if (c == EOF)
 			return lex_truncated(r, start, "a string");
 		if (c == '"')

@@ -488,7 +488,8 @@ static const struct error_case error_cases[] = {
 	 "WorldEnd@2\n"},
 	/* A string may span lines: a forgotten quote runs to the end of the file. */
 	{"Surface \"plastic\nWorldEnd\n",
-	 "t.rib:1: error: truncated file (inside a string)\n", ""},
+	 "t.rib:1: error: unterminated string: it runs from here over 2 lines to the end of the "
+	 "file\n", ""},
 	{"Surface \"a\\qb\" \"Kd\" 1\nWorldEnd\n",
 	 "t.rib:1: error: unknown escape '\\q' in string\n", "WorldEnd@2\n"},
 	{"Sphere 1e999 1 1 1\nSphere 1 1 1 -3.5e38\nWorldEnd\n",
