@@ -50,6 +50,12 @@
  * pool with a free list. A hit that becomes the opaque point frees the nodes
  * behind it, and hits behind the opaque point are rejected at once.
  *
+ * Dissolves. Each sample also has a dissolve number, uniform in [0, 1) from
+ * its own hash; a grid that is a representation in a DetailRange cross-fade
+ * is seen only by the samples whose number lies in its interval, so that two
+ * representations fading into each other over complementary intervals
+ * share the samples between them without overlap.
+ *
  * Resolving. Each sample composites its hits front to back per channel,
  * C += T Ci and T *= 1 - Oi (Ci is premultiplied); a matte hit adds neither
  * colour nor alpha but still attenuates T. Alpha is the mean over the three
@@ -106,6 +112,7 @@ struct sample {
 	float zopq;           /* depth at which the sample became opaque, INFINITY if not */
 	uint32_t head;        /* nearest hit, NIL when none */
 	float zo[2];          /* midpoint depthfilter: the two nearest opaque hits */
+	float lod;            /* dissolve number in [0, 1) for DetailRange's cross-fades */
 };
 
 struct hit {
@@ -397,6 +404,7 @@ static void fill_samples(struct reyes_hider *h)
 	uint64_t sample_salt = mix64(pixel_salt ^ 0x6a09e667f3bcc909u);
 	uint64_t lens_pixel_salt = mix64(pixel_salt ^ 0xbb67ae8584caa73bu);
 	uint64_t lens_salt = mix64(pixel_salt ^ 0x3c6ef372fe94f82bu);
+	uint64_t lod_salt = mix64(sample_salt ^ 0xbb67ae8584caa73bu);
 	double ixs = 1.0 / xs, iys = 1.0 / ys, in = 1.0 / n;
 
 	for (uint32_t py = h->ry0; py < h->ry1; py++) {
@@ -442,6 +450,9 @@ static void fill_samples(struct reyes_hider *h)
 					s->zopq = INFINITY;
 					s->head = NIL;
 					s->zo[0] = s->zo[1] = INFINITY;
+					/* 24 bits, so that a float holds it exactly */
+					s->lod = (float)(key2(gx, gy, lod_salt) >> 40) *
+						 (1.0f / 16777216.0f);
 				}
 			}
 		}
@@ -582,6 +593,8 @@ static void sample_hit(struct reyes_hider *h, struct sample *s, float z, const s
 	float o[3];
 
 	if (!(z > 0.0f))
+		return;
+	if (g->dissolve && !(s->lod >= g->lod_lo && s->lod < g->lod_hi))
 		return;
 	if (h->o.depthfilter == REYES_DEPTH_MIDPOINT) {
 		hit_opacity(m, w, o);

@@ -57,6 +57,11 @@ struct reyes_hider_grid {
 	bool cull_backfacing;             /* Sides 1: drop micropolygons facing away */
 	bool flip;                        /* reverse the facing test (Orientation) */
 	bool matte;                       /* hides what is behind but adds no colour (alpha 0) */
+	/* DetailRange's cross-fade: only samples whose dissolve number (uniform
+	   in [0, 1), a hash of the sample's place) is in [lod_lo, lod_hi) see
+	   the grid; when false every sample does. */
+	bool dissolve;
+	float lod_lo, lod_hi;
 	uint32_t id0;                     /* record mode: vertex k is shading sample id0 + k;
 					     micropolygons using an id past 2^32 - 1 are
 					     dropped (reported once) */

@@ -966,6 +966,23 @@ static void recompute_ng(struct cgrid *c, bool flip)
 }
 
 /*
+ * TextureCoordinates: s and t bilinear over the (u, v) square between the
+ * values at its corners (0, 0), (1, 0), (0, 1), (1, 1), where the primitive
+ * gives no s or t of its own.
+ */
+static void texture_coordinates(struct cgrid *c, const struct reyes_grid *g, const float tc[8])
+{
+	for (uint32_t k = 0; k < c->n; k++) {
+		double u = g->u[k], v = g->v[k];
+		double w[4] = {(1 - u) * (1 - v), u * (1 - v), (1 - u) * v, u * v};
+		if (!g->s)
+			c->s[k] = (float)(w[0] * tc[0] + w[1] * tc[2] + w[2] * tc[4] + w[3] * tc[6]);
+		if (!g->t)
+			c->t[k] = (float)(w[0] * tc[1] + w[1] * tc[3] + w[2] * tc[5] + w[3] * tc[7]);
+	}
+}
+
+/*
  * Dice a job into @g and carry it to camera space, displaced, in @c. On
  * success the caller frees c->P0 (one buffer holds all of @c's planes) and
  * finishes @g; on failure nothing is left to free.
@@ -1011,6 +1028,8 @@ static bool dice_job(struct tctx *t, const struct job *job, struct reyes_grid *g
 		memcpy(c.N, c.Ng, sizeof(float) * 3 * n);
 	memcpy(c.s, g->s ? g->s : g->u, sizeof(float) * n);
 	memcpy(c.t, g->t ? g->t : g->v, sizeof(float) * n);
+	if (a->texcoords && prim->kind != REYES_POLYGONS)
+		texture_coordinates(&c, g, a->texcoords);
 	c.Cs = g->Cs;
 	c.Os = g->Os;
 
@@ -1052,6 +1071,29 @@ fail:
 	return false;
 }
 
+/* Run surface shader @surf over the grid @g, @c with the primitive's lights; *@sx ran it. */
+static bool shade_surface(struct tctx *t, const struct reyes_attrs *a,
+			  const struct reyes_shader *surf, const struct reyes_grid *g,
+			  const struct cgrid *c, struct sl_exec **sx)
+{
+	struct render *r = t->r;
+	struct spaces sp;
+	*sx = exec_for(t, surf);
+	if (!*sx)
+		return false;
+	for (uint32_t i = 0; i < a->nlights; i++) {
+		t->lights_on[i] = light_exec(t, a->lights[i]);
+		memcpy(t->light_mats[i], r->light_mats[a->lights[i]], sizeof(t->light_mats[i]));
+		if (!t->lights_on[i])
+			return false;
+	}
+	build_spaces(r, a, surf, &sp);
+	setup_host(t, t->lights_on, (int)a->nlights, (const float (*)[16])t->light_mats, &sp);
+	set_params(*sx, surf, g);
+	fill_globals(t, *sx, c, a);
+	return sl_exec_run(*sx, &t->lh.host);
+}
+
 /* Dice, displace, shade and project one job; fills job->sh. */
 static bool shade_job(struct tctx *t, struct job *job)
 {
@@ -1064,7 +1106,6 @@ static bool shade_job(struct tctx *t, struct job *job)
 		return false;
 	uint32_t n = g.n;
 	float *buf = c.P0;
-	struct spaces sp;
 	bool ok = true;
 	/* the incident ray, eye at the origin (orthographic: straight ahead) */
 	for (uint32_t k = 0; k < n; k++) {
@@ -1078,26 +1119,10 @@ static bool shade_job(struct tctx *t, struct job *job)
 			c.I[2 * n + k] = 1;
 		}
 	}
-	/* surface */
+	/* surface: a matte object is not shaded (RISpec), it is opaque and adds nothing */
 	const struct reyes_shader *surf = a->surface ? a->surface : &r->default_surface;
-	struct sl_exec *sx = exec_for(t, surf);
-	if (!sx) {
-		ok = false;
-		goto done;
-	}
-	for (uint32_t i = 0; i < a->nlights; i++) {
-		t->lights_on[i] = light_exec(t, a->lights[i]);
-		memcpy(t->light_mats[i], r->light_mats[a->lights[i]], sizeof(t->light_mats[i]));
-		if (!t->lights_on[i]) {
-			ok = false;
-			goto done;
-		}
-	}
-	build_spaces(r, a, surf, &sp);
-	setup_host(t, t->lights_on, (int)a->nlights, (const float (*)[16])t->light_mats, &sp);
-	set_params(sx, surf, &g);
-	fill_globals(t, sx, &c, a);
-	if (!sl_exec_run(sx, &t->lh.host)) {
+	struct sl_exec *sx = NULL;
+	if (!a->matte && !shade_surface(t, a, surf, &g, &c, &sx)) {
 		ok = false;
 		goto done;
 	}
@@ -1133,7 +1158,14 @@ static bool shade_job(struct tctx *t, struct job *job)
 		z1[k] = zz;
 	}
 	const struct reyes_bake_hooks *bk = r->o->bake;
-	if (bk) {
+	if (a->matte) {
+		/* no shading samples: a matte hit is recorded as no entry */
+		sh->hg.id0 = 0;
+		for (size_t k = 0; k < 3 * (size_t)n; k++) {
+			ci[k] = 0;
+			oi[k] = 1;
+		}
+	} else if (bk) {
 		sh->hg.id0 = bk->grid(bk->user, surf, prim, sx, n);
 		if (sh->hg.id0 == UINT32_MAX) {
 			free(mem);
@@ -1144,11 +1176,16 @@ static bool shade_job(struct tctx *t, struct job *job)
 	} else {
 		get_global(sx, SL_GLOBAL_CI, ci, 3, n);
 	}
-	get_global(sx, SL_GLOBAL_OI, oi, 3, n);
+	if (!a->matte)
+		get_global(sx, SL_GLOBAL_OI, oi, 3, n);
 	/* the bake records sample ids instead of colours and AOVs */
 	for (uint32_t q = 0; !bk && q < r->naov; q++) {
 		const struct aov *av = &r->aovs[q];
 		float *dst = aovbase + (size_t)av->offset * n;
+		if (a->matte) {
+			memset(dst, 0, sizeof(float) * n * (size_t)av->ncomp);
+			continue;
+		}
 		const struct sl_program *prog = sl_exec_program(sx);
 		int k = sl_program_find_param(prog, av->name);
 		int32_t reg = k >= 0 ? prog->params[k].reg : -1;
@@ -1182,7 +1219,10 @@ static bool shade_job(struct tctx *t, struct job *job)
 	sh->hg.smooth = a->smooth;
 	sh->hg.cull_backfacing = a->sides == 1;
 	sh->hg.flip = a->flip_normals;
-	sh->hg.matte = false;
+	sh->hg.matte = a->matte;
+	sh->hg.dissolve = a->dissolve;
+	sh->hg.lod_lo = a->lod_lo;
+	sh->hg.lod_hi = a->lod_hi;
 	job->sh = sh;
 	t->grids++;
 	t->points += n;

@@ -251,6 +251,7 @@ static void options_init(struct ri *ri, struct optstate *s)
 	sl_m44_identity(o->world_to_camera);
 	sl_m44_identity(o->world_to_camera1);
 	sl_m44_identity(o->camera_to_screen);
+	s->relative_detail = 1;
 }
 
 /* Would this request change an option? They must come before WorldBegin. */
@@ -751,6 +752,7 @@ static void attrs_init(struct attrstate *a)
 	memcpy(a->ubasis, bezier, sizeof(bezier));
 	memcpy(a->vbasis, bezier, sizeof(bezier));
 	a->ustep = a->vstep = 3;
+	reyes_ri_detail_init(a);
 }
 
 static void xform_init(struct xform *x)
@@ -807,6 +809,16 @@ const struct reyes_attrs *reyes_ri_make_bundle(struct ri *ri, const struct xform
 	b->displacement_bound = a->dbound;
 	b->displacement_bound_space = a->dbound_space;
 	b->casts_shadows = a->casts_shadows;
+	b->matte = a->matte;
+	if (a->has_texcoords) {
+		float *tc = rl_arena_alloc(ri->world, sizeof(a->texcoords));
+		memcpy(tc, a->texcoords, sizeof(a->texcoords));
+		b->texcoords = tc;
+	}
+	/* a representation its DetailRange leaves out is dropped (lod_hi 0) */
+	if (!reyes_ri_detail_visible(a, &b->lod_lo, &b->lod_hi))
+		b->lod_lo = b->lod_hi = 0;
+	b->dissolve = b->lod_lo > 0 || b->lod_hi < 1;
 	b->moving = x->moving;
 	memcpy(b->object_to_world, x->m, sizeof(b->object_to_world));
 	return b;
@@ -2141,6 +2153,13 @@ static const struct handler handlers[] = {
 	{"ShadingInterpolation", req_shading_interpolation, 0},
 	{"Basis", reyes_ri_req_basis, 0},
 	{"Declare", reyes_ri_req_declare, 0},
+	{"TextureCoordinates", reyes_ri_req_texture_coordinates, 0},
+	{"Matte", reyes_ri_req_matte, 0},
+	{"Detail", reyes_ri_req_detail, 0},
+	{"RelativeDetail", reyes_ri_req_relative_detail, 0},
+	{"DetailRange", reyes_ri_req_detail_range, 0},
+	{"GeometricApproximation", reyes_ri_req_geometric_approximation, 0},
+	{"GeometricRepresentation", reyes_ri_req_geometric_representation, 0},
 	{"Identity", req_xform, F_MOTION},
 	{"Transform", req_xform, F_MOTION},
 	{"ConcatTransform", req_xform, F_MOTION},

@@ -125,6 +125,10 @@ enum {
 	OBJ_IDENTIFIER = 1 << 8,
 	OBJ_DBOUND = 1 << 9,
 	OBJ_VISIBILITY = 1 << 10,
+	OBJ_TEXCOORDS = 1 << 11,
+	OBJ_MATTE = 1 << 12,
+	OBJ_DETAIL = 1 << 13,
+	OBJ_DETAIL_RANGE = 1 << 14,
 };
 
 /* The attributes of the graphics state (the transformation aside). */
@@ -144,6 +148,12 @@ struct attrstate {
 	bool casts_shadows;
 	float ubasis[16], vbasis[16];
 	uint32_t ustep, vstep;
+	float texcoords[8];             /* TextureCoordinates s1 t1 ... s4 t4 */
+	bool has_texcoords;             /* not the default 0 0 1 0 0 1 1 1 */
+	bool matte;
+	float detail;                   /* Detail: the bound's raster area; < 0: none given */
+	float detail_range[4];          /* DetailRange minvisible ... maxvisible */
+	bool has_detail_range;
 	unsigned objset;                /* OBJ_*: set since ObjectBegin */
 };
 
@@ -166,6 +176,7 @@ struct optstate {
 	bool projection_given;
 	bool quantize_float;           /* Quantize "rgba" 0 ...: float images */
 	struct rib_loc dof_loc;        /* the DepthOfField request in force */
+	float relative_detail;         /* RelativeDetail: scales every Detail (default 1) */
 };
 
 enum blk { BLK_FRAME, BLK_WORLD, BLK_ATTRIBUTE, BLK_TRANSFORM, BLK_MOTION, BLK_OBJECT };
@@ -379,6 +390,39 @@ bool reyes_ri_close_block(struct ri *ri, const struct rib_request *r, enum blk k
 
 /** The innermost open block of @kind, or NULL. */
 const struct block *reyes_ri_find_block(const struct ri *ri, enum blk kind);
+
+/* ---- ri_detail.c: level of detail and the geometric attributes ------------------- */
+
+/** The attributes of ri_detail.c at their defaults (no Detail, no DetailRange). */
+void reyes_ri_detail_init(struct attrstate *a);
+
+/**
+ * The part of the samples that see primitives under @a (DetailRange over
+ * the Detail's raster area): a sample whose dissolve number is in
+ * [*lo, *hi) sees them. False when they are not visible at all.
+ */
+bool reyes_ri_detail_visible(const struct attrstate *a, float *lo, float *hi);
+
+/** TextureCoordinates: the s, t of the corners of the (u, v) square. */
+void reyes_ri_req_texture_coordinates(struct ri *ri, const struct rib_request *r);
+
+/** Matte: whether the primitives that follow are matte objects. */
+void reyes_ri_req_matte(struct ri *ri, const struct rib_request *r);
+
+/** Detail: the bound whose raster area selects representations. */
+void reyes_ri_req_detail(struct ri *ri, const struct rib_request *r);
+
+/** RelativeDetail: the option that scales every Detail's raster area. */
+void reyes_ri_req_relative_detail(struct ri *ri, const struct rib_request *r);
+
+/** DetailRange: the detail over which the representation that follows is seen. */
+void reyes_ri_req_detail_range(struct ri *ri, const struct rib_request *r);
+
+/** GeometricApproximation: "flatness" and "motionfactor", accepted (see docs/renderer.md). */
+void reyes_ri_req_geometric_approximation(struct ri *ri, const struct rib_request *r);
+
+/** GeometricRepresentation: "primitive" renders; any other is reported and ignored. */
+void reyes_ri_req_geometric_representation(struct ri *ri, const struct rib_request *r);
 
 /* ---- ri_prims.c: declarations ------------------------------------------------------ */
 

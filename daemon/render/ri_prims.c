@@ -484,6 +484,8 @@ static void add_prim(struct ri *ri, struct reyes_prim *p, const struct xform *x)
 	}
 	struct reyes_prim q = *p;
 	q.attrs = x == &ri->gs.x ? reyes_ri_cur_bundle(ri) : reyes_ri_make_bundle(ri, x);
+	if (q.attrs->dissolve && !(q.attrs->lod_hi > q.attrs->lod_lo))
+		return;         /* a representation its DetailRange leaves out */
 	q.id = (uint32_t)ri->prims.len;
 	rl_vec_push(ri->prims, q);
 }
@@ -1078,6 +1080,18 @@ static void instance_attrs(struct attrstate *a, const struct attrstate *def)
 	}
 	if (set & OBJ_VISIBILITY)
 		a->casts_shadows = def->casts_shadows;
+	if (set & OBJ_TEXCOORDS) {
+		memcpy(a->texcoords, def->texcoords, sizeof(a->texcoords));
+		a->has_texcoords = def->has_texcoords;
+	}
+	if (set & OBJ_MATTE)
+		a->matte = def->matte;
+	if (set & OBJ_DETAIL)
+		a->detail = def->detail;
+	if (set & OBJ_DETAIL_RANGE) {
+		memcpy(a->detail_range, def->detail_range, sizeof(a->detail_range));
+		a->has_detail_range = def->has_detail_range;
+	}
 }
 
 void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
@@ -1097,6 +1111,7 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 	/* one bundle for a run of primitives under the same recorded attributes */
 	const struct attrstate *bundle_a = NULL;
 	const struct reyes_attrs *bundle = NULL;
+	bool warned = false;
 	for (size_t i = 0; i < o->prims.len; i++) {
 		const struct obj_prim *op = &o->prims.data[i];
 		struct xform x = ri->gs.x;
@@ -1116,11 +1131,19 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 			/* The attributes the definition set, over the instance's. */
 			struct attrstate saved = ri->gs.a;
 			instance_attrs(&ri->gs.a, op->a);
+			if (ri->gs.a.has_detail_range && ri->gs.a.detail < 0 && !warned) {
+				reyes_ri_warn(ri, r->loc,
+					      "object '%s' has a DetailRange but no Detail bound is "
+					      "in effect: every representation renders", handle);
+				warned = true;
+			}
 			q.attrs = reyes_ri_make_bundle(ri, &x);
 			ri->gs.a = saved;
 			bundle_a = op->identity ? op->a : NULL;
 			bundle = q.attrs;
 		}
+		if (q.attrs->dissolve && !(q.attrs->lod_hi > q.attrs->lod_lo))
+			continue;
 		q.id = (uint32_t)ri->prims.len;
 		rl_vec_push(ri->prims, q);
 	}

@@ -105,6 +105,14 @@ static const struct reqdef reqdefs[] = {
 	{"ShadingInterpolation", "type:s", 0},
 	{"Basis", "ubasis:b ustep:i vbasis:b vstep:i", 0},
 	{"Declare", "name:s declaration:s", 0},
+	{"TextureCoordinates", "s1:n t1:n s2:n t2:n s3:n t3:n s4:n t4:n", BRACKET_OK},
+	{"Matte", "onoff:i", 0},
+	{"Detail", "minx:n maxx:n miny:n maxy:n minz:n maxz:n", BRACKET_OK},
+	{"RelativeDetail", "relativedetail:n", 0},
+	{"DetailRange", "minvisible:n lowertransition:n uppertransition:n maxvisible:n",
+	 BRACKET_OK},
+	{"GeometricApproximation", "type:s value:n", 0},
+	{"GeometricRepresentation", "type:s", 0},
 	/* transformations */
 	{"Identity", "", 0},
 	{"Transform", "matrix:m", 0},
@@ -151,11 +159,11 @@ static const struct reqdef reqdefs[] = {
  */
 static const char *const unsupported[] = {
 	"AreaLightSource", "ArchiveRecord", "Atmosphere", "Blobby", "Bound", "ColorSamples",
-	"Curves", "Deformation", "Detail", "DetailRange", "ErrorHandler",
-	"Exterior", "GeometricApproximation", "Imager", "Interior", "MakeBump",
-	"Matte", "NuPatch", "Perspective",
-	"Points", "Procedural", "RelativeDetail", "SolidBegin", "SolidEnd",
-	"SubdivisionMesh", "TextureCoordinates", "TrimCurve",
+	"Curves", "Deformation", "ErrorHandler",
+	"Exterior", "Imager", "Interior", "MakeBump",
+	"NuPatch", "Perspective",
+	"Points", "Procedural", "SolidBegin", "SolidEnd",
+	"SubdivisionMesh", "TrimCurve",
 };
 
 /* ---- diagnostics ------------------------------------------------------------ */
@@ -503,14 +511,18 @@ static enum tok lex_string(struct rib_reader *r)
 	r->str.len = 0;
 	for (;;) {
 		int c = getc_(r);
+		if (c == EOF && r->line > start && !r->src_failed)
+			/* most likely a forgotten closing quote: say where it opened */
+			return lex_fail(r, start,
+					"unterminated string: it runs from here over %u lines to the "
+					"end of the file",
+					(unsigned)(r->line - start));
 		if (c == EOF)
 			return lex_truncated(r, start, "a string");
 		if (c == '"')
 			break;
-		if (c == '\n') {
-			/* A newline ends a forgotten quote early rather than eating the file. */
-			return lex_fail(r, start, "unterminated string");
-		}
+		/* A string may hold newlines, as prman reads them (a long path or
+		   Display name broken over lines); the reader counts them as lines. */
 		if (c != '\\') {
 			str_putc(r, (char)c, &too_long);
 			continue;

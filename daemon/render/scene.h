@@ -112,6 +112,15 @@ struct reyes_attrs {
 	float displacement_bound;             /* Attribute "displacementbound" "sphere" */
 	const char *displacement_bound_space; /* its coordinate system, default "object" */
 	bool casts_shadows;                   /* Attribute "visibility" "transmission" (default on) */
+	bool matte;                           /* Matte: hides what is behind, adds no colour or alpha */
+	/* TextureCoordinates: s, t at (u, v) = (0, 0), (1, 0), (0, 1), (1, 1), for
+	   quadrics and patches without s, t of their own; NULL: s = u, t = v. */
+	const float *texcoords;
+	/* DetailRange's cross-fade: when dissolve is set, only a subpixel sample
+	   whose dissolve number (uniform in [0, 1), the hider's) is in
+	   [lod_lo, lod_hi) sees the primitive. */
+	bool dissolve;
+	float lod_lo, lod_hi;
 	bool moving;                          /* object_to_world differs at shutter close */
 	float object_to_world[2][16];         /* at shutter open and close */
 };

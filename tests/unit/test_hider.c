@@ -761,6 +761,56 @@ static void test_matte(void)
 	tgrid_free(m);
 }
 
+/* ---- dissolves (DetailRange cross-fades) ---- */
+
+/*
+ * Two opaque grids over the whole image at different depths, one seen by
+ * the samples whose dissolve number is in [0, 0.3), the other by those in
+ * [0.3, 1): every sample sees exactly one (alpha exactly 1, red + green
+ * exactly 1 in every pixel), and the near one covers 0.3 of the 64x64x16
+ * samples within 0.01 (binomial spread 0.0018). The same grids with
+ * [0, 0.3) and [0.2, 1) overlap: the near one hides the far one where both
+ * are seen, and nothing leaves a gap.
+ */
+static void test_dissolve(void)
+{
+	const float red[3] = { 1, 0, 0 }, green[3] = { 0, 1, 0 };
+	uint32_t W = 64, H = 64;
+	struct tgrid *a = rect_grid(-1, -1, W + 1, H + 1, 2, red, 1.0f);
+	struct tgrid *b = rect_grid(-1, -1, W + 1, H + 1, 5, green, 1.0f);
+	struct reyes_hider_grid *g[2] = { &a->g, &b->g };
+	struct reyes_hider_opts o = opts_default(W, H, 4);
+	o.filter = REYES_FILTER_BOX;
+	o.filter_width[0] = o.filter_width[1] = 1;
+	float *img = image(W, H, 4);
+	for (int overlap = 0; overlap < 2; overlap++) {
+		a->g.dissolve = b->g.dissolve = true;
+		a->g.lod_lo = 0;
+		a->g.lod_hi = 0.3f;
+		b->g.lod_lo = overlap ? 0.2f : 0.3f;
+		b->g.lod_hi = 1;
+		render(&o, g, 2, W, H, img, NULL, NULL);
+		double red_mean = 0, worst = 0;
+		for (uint32_t y = 0; y < H; y++)
+			for (uint32_t x = 0; x < W; x++) {
+				red_mean += C(img, W, x, y, 0) / (double)(W * H);
+				worst = fmax(worst, fabs(C(img, W, x, y, 0) + C(img, W, x, y, 1) - 1));
+				worst = fmax(worst, fabs(A(img, W, x, y) - 1));
+			}
+		printf("dissolve%s: red %.4f (expected 0.3, tolerance 0.01), worst |R+G-1|, |A-1| "
+		       "%.2g (tolerance 1e-6)\n", overlap ? " with overlap" : "", red_mean, worst);
+		CHECK_NEAR(red_mean, 0.3, 0.01);
+		CHECK(worst <= 1e-6);
+	}
+	/* Without the flag every sample sees both: the near one alone shows. */
+	a->g.dissolve = b->g.dissolve = false;
+	render(&o, g, 2, W, H, img, NULL, NULL);
+	CHECK(C(img, W, 10, 10, 0) == 1.0f && C(img, W, 10, 10, 1) == 0.0f);
+	free(img);
+	tgrid_free(a);
+	tgrid_free(b);
+}
+
 /* ---- buckets ---- */
 
 static void test_determinism(void)
@@ -990,8 +1040,8 @@ static double rnd(void)
 /*
  * A random grid: nu x nv vertices (2 to 6 each) on a rotated, sheared
  * patch of 2 to 10 pixels with wobble, a depth slope, grey opacity (opaque,
- * or random per vertex), random colours; sometimes matte, moving, culled or
- * flipped, smooth or flat.
+ * or random per vertex), random colours; sometimes matte, moving, culled,
+ * flipped or dissolved (seen by part of the samples), smooth or flat.
  */
 static struct tgrid *random_grid(uint32_t W, uint32_t H, uint32_t id0)
 {
@@ -1033,6 +1083,13 @@ static struct tgrid *random_grid(uint32_t W, uint32_t H, uint32_t id0)
 	t->g.cull_backfacing = rnd() < 0.3;
 	t->g.flip = rnd() < 0.5;
 	t->g.id0 = id0;
+	if (rnd() < 0.2) {
+		/* a representation in a DetailRange cross-fade */
+		double a = rnd(), b = rnd();
+		t->g.dissolve = true;
+		t->g.lod_lo = (float)fmin(a, b);
+		t->g.lod_hi = (float)fmax(a, b);
+	}
 	return t;
 }
 
@@ -1059,7 +1116,7 @@ static int check_entries(const struct recimg *r, bool nonneg, uint32_t base, uin
 
 /*
  * The recipe reproduces the normal render: for random scenes (transparent,
- * opaque, matte, smooth, flat, moving, culled grids), every filter at widths
+ * opaque, matte, smooth, flat, moving, culled, dissolved grids), every filter at widths
  * 1 to 4 and 1x1, 3x3, 4x4 and 2x3 samples, in buckets whose margins cut
  * through the scene, sum(weight Ci[id]) equals reyes_hider_end's colour
  * within 1e-5 of the sum of |weight Ci| plus 1e-6, and alpha and depth are
@@ -1732,6 +1789,7 @@ int main(void)
 	RUN(test_depthfilter);
 	RUN(test_shading);
 	RUN(test_matte);
+	RUN(test_dissolve);
 	RUN(test_determinism);
 	RUN(test_bad_input);
 	RUN(test_record_identity);

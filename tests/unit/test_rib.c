@@ -177,6 +177,14 @@ static const char all_requests_rib[] =
 	"WorldEnd\n"
 	"MakeTexture \"in.tif\" \"out.tx\" \"periodic\" \"clamp\" \"gaussian\" 2 2 \"fov\" 1\n"
 	"MakeShadow \"depth.z\" \"shadow.tx\"\n"
+	"TextureCoordinates [0 0 2 0 0 2 2 2]\n"
+	"Matte 1\n"
+	"Detail -1 1 -1 1 0 0\n"
+	"Detail [-1 1 -1 1 0 1]\n"
+	"DetailRange 0 0 10 20\n"
+	"RelativeDetail 0.5\n"
+	"GeometricApproximation \"flatness\" 0.5\n"
+	"GeometricRepresentation \"primitive\"\n"                /* 81 */
 	"FrameEnd\n";
 
 static const char all_requests_out[] =
@@ -253,7 +261,15 @@ static const char all_requests_out[] =
 	"WorldEnd@71\n"
 	"MakeTexture@72 \"in.tif\" \"out.tx\" \"periodic\" \"clamp\" \"gaussian\" 2 2 \"fov\"=[1]\n"
 	"MakeShadow@73 \"depth.z\" \"shadow.tx\"\n"
-	"FrameEnd@74\n";
+	"TextureCoordinates@74 0 0 2 0 0 2 2 2\n"
+	"Matte@75 1\n"
+	"Detail@76 -1 1 -1 1 0 0\n"
+	"Detail@77 -1 1 -1 1 0 1\n"
+	"DetailRange@78 0 0 10 20\n"
+	"RelativeDetail@79 0.5\n"
+	"GeometricApproximation@80 \"flatness\" 0.5\n"
+	"GeometricRepresentation@81 \"primitive\"\n"
+	"FrameEnd@82\n";
 
 /* The requests the reader must know: the table, exactly. */
 static const char *const table_names[] = {
@@ -268,6 +284,8 @@ static const char *const table_names[] = {
 	"ObjectBegin", "ObjectEnd", "ObjectInstance", "ReadArchive", "MakeTexture", "MakeShadow",
 	"Sphere", "Cylinder", "Cone", "Disk", "Hyperboloid", "Paraboloid", "Torus", "Polygon",
 	"GeneralPolygon", "PointsPolygons", "PointsGeneralPolygons", "Patch", "PatchMesh",
+	"TextureCoordinates", "Matte", "Detail", "DetailRange", "RelativeDetail",
+	"GeometricApproximation", "GeometricRepresentation",
 };
 
 static void test_all_requests(void)
@@ -277,7 +295,7 @@ static void test_all_requests(void)
 	CHECK(r->nerrors == 0);
 	CHECK_STR(r->diag, "");
 	CHECK_STR(r->out, all_requests_out);
-	CHECK(r->count == 74);
+	CHECK(r->count == 82);
 	/* Each table name is in the input (so parsed above) as a whole word at a line start. */
 	for (size_t i = 0; i < sizeof(table_names) / sizeof(table_names[0]); i++) {
 		char key[64];
@@ -358,6 +376,33 @@ static void test_strings(void)
 	CHECK(r->ok);
 	CHECK_STR(r->out, "Surface@1 \"a\tb\\c\"dA009\nxy\" \"k\"=[\"\"]\n"
 			  "Option@3 \"o\" \"s\"=[\"\" \"x y\" \"#not a comment\" \"[\"]\n");
+}
+
+/*
+ * A string may hold newlines, as prman reads it (a long path or Display name
+ * broken over lines): they are part of the string, and the requests after it
+ * keep their own line numbers, as do errors after it.
+ */
+static void test_strings_over_lines(void)
+{
+	struct run *r = run_text("Display \"long/path/\nto/image.exr\" \"file\" \"rgba\"\n"
+				 "Surface \"s\" \"string map\" [\"a\n\nb\" \"c\"]\n"
+				 "Option \"searchpath\" \"shader\" \"x:\r\n@\"\n"
+				 "WorldBegin\n");
+	CHECK(r->ok);
+	CHECK_STR(r->diag, "");
+	CHECK_STR(r->out, "Display@1 \"long/path/\nto/image.exr\" \"file\" \"rgba\"\n"
+			  "Surface@3 \"s\" \"string map\"=[\"a\n\nb\" \"c\"]\n"
+			  "Option@6 \"searchpath\" \"shader\"=[\"x:\r\n@\"]\n"
+			  "WorldBegin@8\n");
+	/* an error after such a string names its own line */
+	r = run_text("Attribute \"identifier\" \"name\" \"one\ntwo\nthree\"\n"
+		     "Sphere 1 2\nWorldEnd\n");
+	CHECK(!r->ok);
+	CHECK_STR(r->diag,
+		  "t.rib:4: error: Sphere expects 4 numbers before its parameter list, got 2\n");
+	CHECK_STR(r->out, "Attribute@1 \"identifier\" \"name\"=[\"one\ntwo\nthree\"]\n"
+			  "WorldEnd@5\n");
 }
 
 static void test_comments_and_lines(void)
@@ -441,8 +486,10 @@ static const struct error_case error_cases[] = {
 	 "t.rib:1: error: expected a parameter name (a string) in Surface's parameter list, "
 	 "got number 1\n",
 	 "WorldEnd@2\n"},
+	/* A string may span lines: a forgotten quote runs to the end of the file. */
 	{"Surface \"plastic\nWorldEnd\n",
-	 "t.rib:1: error: unterminated string\n", "WorldEnd@2\n"},
+	 "t.rib:1: error: unterminated string: it runs from here over 2 lines to the end of the "
+	 "file\n", ""},
 	{"Surface \"a\\qb\" \"Kd\" 1\nWorldEnd\n",
 	 "t.rib:1: error: unknown escape '\\q' in string\n", "WorldEnd@2\n"},
 	{"Sphere 1e999 1 1 1\nSphere 1 1 1 -3.5e38\nWorldEnd\n",
@@ -934,6 +981,7 @@ int main(void)
 	RUN(test_all_requests);
 	RUN(test_params_and_types);
 	RUN(test_strings);
+	RUN(test_strings_over_lines);
 	RUN(test_comments_and_lines);
 	RUN(test_bracket_forms);
 	RUN(test_errors);
