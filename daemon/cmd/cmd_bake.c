@@ -49,6 +49,8 @@ static void usage(FILE *out)
 		"                           shader's own folder (repeatable, in order; the\n"
 		"                           scene's Option \"searchpath\" \"include\" replaces\n"
 		"                           the list, '@' in it standing for the -I folders)\n"
+		"  --strict                 Every warning of the scene is an error: a scene\n"
+		"                           with any is not baked\n"
 		"  -q, --quiet              No progress bar and no summary\n"
 		"  -h, --help               Show this help and exit\n"
 		"\n"
@@ -57,8 +59,13 @@ static void usage(FILE *out)
 		"(%s): first a file NAME.sl, then a .sl file along the path that declares\n"
 		"the shader NAME; \"null\" is the built-in shader that does nothing.\n"
 		"\n"
-		"Exit status: 0 on success, 1 when the scene has errors or cannot be baked\n"
-		"(reported with the file and line), 2 on a usage error.\n",
+		"What relight does not support in the scene is a warning (FILE:LINE: warning:)\n"
+		"naming what is ignored, and the shot is baked; a primitive whose data is\n"
+		"malformed is an error that drops it, the rest is baked.\n"
+		"\n"
+		"Exit status: 0 on success, warnings or not; 1 when the scene has errors\n"
+		"(reported with the file and line: a primitive dropped, or nothing baked), a\n"
+		"warning under --strict, or it cannot be baked; 2 on a usage error.\n",
 		BAKE_DEFAULT_TILE_BUDGET >> 20, (double)BAKE_DEFAULT_SHADOW_RATE,
 		RELIGHT_SOURCE_SHADER_DIR);
 }
@@ -123,6 +130,7 @@ int cmd_bake(int argc, char **argv)
 		{ "shadow-rate", required_argument, NULL, 'r' },
 		{ "full-float", no_argument, NULL, 'f' },
 		{ "quiet", no_argument, NULL, 'q' },
+		{ "strict", no_argument, NULL, 'S' },
 		{ NULL, 0, NULL, 0 },
 	};
 	optind = 1;
@@ -202,6 +210,9 @@ int cmd_bake(int argc, char **argv)
 			break;
 		case 'q':
 			job.quiet = true;
+			break;
+		case 'S':
+			job.bo.strict = true;
 			break;
 		case ':':
 			free(dyn);

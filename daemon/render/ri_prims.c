@@ -225,11 +225,16 @@ static const struct {
 	{"st", {.cls = REYES_VARYING, .type = SL_TYPE_FLOAT, .arraylen = 2}},
 };
 
-/* The type of a primitive variable: inline declaration, Declare, or standard. */
+/*
+ * The type of a primitive variable: inline declaration, Declare, or
+ * standard. False when it has none (*unknown set, not reported: the caller
+ * ignores it with a warning) or its token is malformed (reported).
+ */
 static bool var_decl(struct ri *ri, const struct rib_request *r, const struct rib_param *p,
-		     struct decl *d, const char **name)
+		     struct decl *d, const char **name, bool *unknown)
 {
 	bool has;
+	*unknown = false;
 	if (!reyes_ri_param_token(ri, p, r->name, d, &has, name))
 		return false;
 	if (has)
@@ -244,8 +249,7 @@ static bool var_decl(struct ri *ri, const struct rib_request *r, const struct ri
 			*d = std_vars[i].d;
 			return true;
 		}
-	reyes_ri_err(ri, p->loc, "%s: unknown primitive variable '%s' (declare it with Declare "
-		     "or an inline type)", r->name, *name);
+	*unknown = true;
 	return false;
 }
 
@@ -263,8 +267,12 @@ static bool point_count(struct ri *ri, const struct rib_request *r, uint32_t *np
 		const struct rib_param *p = &r->params[i];
 		struct decl d;
 		const char *name;
-		if (!var_decl(ri, r, p, &d, &name))
+		bool unknown;
+		if (!var_decl(ri, r, p, &d, &name, &unknown)) {
+			if (unknown)
+				continue;       /* prim_vars warns */
 			return false;
+		}
 		if (strcmp(name, "P") != 0 && strcmp(name, "Pw") != 0)
 			continue;
 		uint32_t c = decl_ncomp(&d);
@@ -287,6 +295,41 @@ static bool point_count(struct ri *ri, const struct rib_request *r, uint32_t *np
 }
 
 /*
+ * Does a primitive variable @name of @type (@alen: its array length, 0 for
+ * none) fit the parameter of that name of the current surface and
+ * displacement shaders, if they have one? A parameter takes a variable of
+ * as many floats (a colour takes a point); one that does not fit is ignored
+ * with a warning here, where it is written, not refused at each grid.
+ */
+static bool binds(struct ri *ri, const struct rib_request *r, const struct rib_param *par,
+		  const char *name, int type, uint32_t alen)
+{
+	const struct reyes_shader *shs[2] = {ri->gs.a.surface, ri->gs.a.displacement};
+	uint32_t have = (uint32_t)sl_type_ncomp(type) * (alen ? alen : 1);
+	for (int i = 0; i < 2; i++) {
+		if (!shs[i] || !shs[i]->prog)
+			continue;
+		const struct sl_program *prog = shs[i]->prog;
+		int k = sl_program_find_param(prog, name);
+		if (k < 0)
+			continue;
+		const struct sl_type *t = &prog->params[k].type;
+		uint32_t tlen = t->arraylen > 0 ? (uint32_t)t->arraylen : 0;
+		uint32_t want = (uint32_t)sl_type_ncomp(t->base) * (tlen ? tlen : 1);
+		if (t->base != SL_TYPE_STRING && want == have)
+			continue;
+		reyes_ri_warn(ri, par->loc, "%s: primitive variable '%s' (%s%s) does not fit "
+			      "parameter '%s' of shader '%s' (%s%s): ignored", r->name, name,
+			      sl_basetype_name(type),
+			      alen ? rl_arena_printf(ri->perm, "[%u]", alen) : "", name,
+			      shs[i]->name, sl_basetype_name(t->base),
+			      tlen ? rl_arena_printf(ri->perm, "[%u]", tlen) : "");
+		return false;
+	}
+	return true;
+}
+
+/*
  * The primitive variables of @r's parameter list into @p, each checked
  * against the count of its class: sizes[class] items.
  */
@@ -306,8 +349,15 @@ static bool prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t
 		const struct rib_param *par = &r->params[i];
 		struct decl d;
 		const char *name;
-		if (!var_decl(ri, r, par, &d, &name))
-			return false;
+		bool unknown;
+		if (!var_decl(ri, r, par, &d, &name, &unknown)) {
+			if (!unknown)
+				return false;
+			reyes_ri_warn(ri, par->loc, "%s: primitive variable '%s' has no type "
+				      "(declare it with Declare or an inline type): ignored", r->name,
+				      name);
+			continue;
+		}
 		if (d.type == SL_TYPE_STRING) {
 			reyes_ri_warn(ri, par->loc, "%s: string primitive variable '%s' ignored",
 				      r->name, name);
@@ -315,8 +365,9 @@ static bool prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t
 		}
 		bool is_P = strcmp(name, "P") == 0 || strcmp(name, "Pw") == 0;
 		if (is_P && !points) {
-			reyes_ri_err(ri, par->loc, "%s does not take \"%s\"", r->name, name);
-			return false;
+			reyes_ri_warn(ri, par->loc, "%s does not take \"%s\": ignored", r->name,
+				      name);
+			continue;
 		}
 		uint32_t per = decl_ncomp(&d);
 		uint64_t want = (uint64_t)sizes[d.cls] * per;
@@ -385,6 +436,8 @@ static bool prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t
 			vals[1] = t;
 			alen = 0;
 		}
+		if (!binds(ri, r, par, name, type, alen))
+			continue;
 		for (int j = 0; j < 2 && names[j]; j++) {
 			for (uint32_t k = 0; k < n; k++)
 				if (strcmp(vars[k].name, names[j]) == 0) {

@@ -260,6 +260,8 @@ static void report(struct sl_exec *x, const struct sl_insn *in, const char *what
 		   const char *fmt, va_list ap)
 {
 	const struct sl_program *prog = x->prog;
+	/* one whole line: executors of other threads report at the same time */
+	flockfile(stderr);
 	if (in) {
 		const char *file = prog_label(prog);
 		if (prog->files && in->loc.file < prog->nfiles && prog->files[in->loc.file])
@@ -270,6 +272,7 @@ static void report(struct sl_exec *x, const struct sl_insn *in, const char *what
 	}
 	vfprintf(stderr, fmt, ap);
 	fputc('\n', stderr);
+	funlockfile(stderr);
 }
 
 /* Index of @in in the program's code, or NONE when it is not one of them. */
