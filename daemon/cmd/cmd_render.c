@@ -6,6 +6,7 @@
 /* realpath() is an X/Open part of POSIX 2008. */
 #define _XOPEN_SOURCE 700
 #include "cmd.h"
+#include "exec.h"
 #include "reyes.h"
 #include "ri.h"
 #include "shader_cache.h"
@@ -528,11 +529,14 @@ out:
 /* The run's last line: frames, warnings (and the repeats not shown), errors. */
 static void summary(const struct render_job *j, const struct reyes_ri_counts *c)
 {
-	int warnings = c->warnings + j->warnings;
-	fprintf(stderr, "relight render: %u of %u frame%s rendered, %d warning%s (%d repeat%s not "
-		"shown), %d error%s", j->rendered, j->nplanned, j->nplanned == 1 ? "" : "s",
-		warnings, warnings == 1 ? "" : "s", c->repeats, c->repeats == 1 ? "" : "s",
-		c->errors, c->errors == 1 ? "" : "s");
+	uint64_t shading, shading_repeats;
+	sl_exec_warning_counts(&shading, &shading_repeats);
+	unsigned long long warnings = (unsigned long long)(c->warnings + j->warnings) + shading;
+	unsigned long long repeats = (unsigned long long)c->repeats + shading_repeats;
+	fprintf(stderr, "relight render: %u of %u frame%s rendered, %llu warning%s (%llu repeat%s "
+		"not shown), %d error%s", j->rendered, j->nplanned, j->nplanned == 1 ? "" : "s",
+		warnings, warnings == 1 ? "" : "s", repeats, repeats == 1 ? "" : "s", c->errors,
+		c->errors == 1 ? "" : "s");
 	if (c->dropped)
 		fprintf(stderr, ", %d primitive%s dropped", c->dropped, c->dropped == 1 ? "" : "s");
 	fputc('\n', stderr);
@@ -718,6 +722,13 @@ int cmd_render(int argc, char **argv)
 	ri.check_only = false;
 	job.checking = false;
 	ok = reyes_ri_read(path, &ri, &nerrors);
+	uint64_t shading, shading_repeats;
+	sl_exec_warning_counts(&shading, &shading_repeats);
+	if (job.strict && shading) {
+		fprintf(stderr, "relight render: error: the shaders warned %llu time%s: an error "
+			"under --strict\n", (unsigned long long)shading, shading == 1 ? "" : "s");
+		ok = false;
+	}
 	if (!job.quiet)
 		summary(&job, &counts);
 	plan_free(&job);

@@ -18,6 +18,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -256,22 +257,86 @@ static void matmul4(const float a[16], const float b[16], float out[16])
 /* ------------------------------------------------------------------------ */
 /* Diagnostics, scratch, strings                                             */
 
+/*
+ * The warnings printed so far, by their text ("FILE:LINE:COL: warning: ..."):
+ * every thread's executors of a program warn at the same places, and each
+ * place is printed once a process (up to MAX_WARNED places; past that they
+ * are printed each time). Behind warned_lock.
+ */
+enum { MAX_WARNED = 4096 };
+static pthread_mutex_t warned_lock = PTHREAD_MUTEX_INITIALIZER;
+static char *warned_lines[2 * MAX_WARNED];
+static size_t nwarned;
+static uint64_t warned_printed, warned_repeats;
+
+/* Was @line printed already? Records it if not (true: a repeat). Under warned_lock. */
+static bool seen_warning(const char *line)
+{
+	uint64_t h = 1469598103934665603u;
+	for (const char *c = line; *c; c++)
+		h = (h ^ (unsigned char)*c) * 1099511628211u;
+	size_t mask = 2 * MAX_WARNED - 1;
+	for (size_t i = (size_t)h & mask;; i = (i + 1) & mask) {
+		if (!warned_lines[i]) {
+			if (nwarned == MAX_WARNED)
+				return false;
+			char *copy = strdup(line);
+			if (copy) {
+				warned_lines[i] = copy;
+				nwarned++;
+			}
+			return false;
+		}
+		if (strcmp(warned_lines[i], line) == 0)
+			return true;
+	}
+}
+
+void sl_exec_warning_counts(uint64_t *printed, uint64_t *repeats)
+{
+	pthread_mutex_lock(&warned_lock);
+	*printed = warned_printed;
+	*repeats = warned_repeats;
+	pthread_mutex_unlock(&warned_lock);
+}
+
+/*
+ * "FILE:LINE:COL: WHAT: MESSAGE" on stderr in one write of the whole line:
+ * executors of other threads report at the same time. A warning already
+ * printed (by any executor) is counted, not printed again.
+ */
 static void report(struct sl_exec *x, const struct sl_insn *in, const char *what,
 		   const char *fmt, va_list ap)
 {
 	const struct sl_program *prog = x->prog;
-	/* one whole line: executors of other threads report at the same time */
-	flockfile(stderr);
+	char line[1024];
+	int n;
 	if (in) {
 		const char *file = prog_label(prog);
 		if (prog->files && in->loc.file < prog->nfiles && prog->files[in->loc.file])
 			file = prog->files[in->loc.file];
-		fprintf(stderr, "%s:%u:%u: %s: ", file, in->loc.line, in->loc.col, what);
+		n = snprintf(line, sizeof(line), "%s:%u:%u: %s: ", file, in->loc.line, in->loc.col,
+			     what);
 	} else {
-		fprintf(stderr, "%s: %s: ", prog_label(prog), what);
+		n = snprintf(line, sizeof(line), "%s: %s: ", prog_label(prog), what);
 	}
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
+	if (n < 0)
+		return;
+	size_t len = (size_t)n < sizeof(line) - 1 ? (size_t)n : sizeof(line) - 1;
+	n = vsnprintf(line + len, sizeof(line) - len, fmt, ap);
+	len = n < 0 ? len : len + (size_t)n < sizeof(line) - 1 ? len + (size_t)n : sizeof(line) - 1;
+	if (!strcmp(what, "warning")) {
+		pthread_mutex_lock(&warned_lock);
+		bool repeat = seen_warning(line);
+		warned_repeats += repeat;
+		warned_printed += !repeat;
+		pthread_mutex_unlock(&warned_lock);
+		if (repeat)
+			return;
+	}
+	line[len] = '\n';
+	flockfile(stderr);
+	fwrite(line, 1, len + 1, stderr);
 	funlockfile(stderr);
 }
 
