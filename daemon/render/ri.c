@@ -2244,6 +2244,9 @@ static bool on_request(void *user, const struct rib_request *r)
 		h->fn(ri, r);
 		ri->in_prim = false;
 		ri->dropped += ri->prim_failed;
+		/* a deforming primitive goes with the sample it lacks */
+		if (ri->prim_failed && ri->motion.active)
+			ri->motion.bad = true;
 		return !ri->stop;
 	}
 	h->fn(ri, r);

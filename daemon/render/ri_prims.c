@@ -295,38 +295,92 @@ static bool point_count(struct ri *ri, const struct rib_request *r, uint32_t *np
 }
 
 /*
- * Does a primitive variable @name of @type (@alen: its array length, 0 for
- * none) fit the parameter of that name of the current surface and
- * displacement shaders, if they have one? A parameter takes a variable of
- * as many floats (a colour takes a point); one that does not fit is ignored
- * with a warning here, where it is written, not refused at each grid.
+ * The parameter of shader @sh that a primitive variable @name of @type
+ * (@alen: its array length, 0 for none) would bind to but does not fit, or
+ * NULL. A parameter takes a variable of as many floats (a colour takes a
+ * point), and no string.
+ */
+static const struct sl_param *misfit(const struct reyes_shader *sh, const char *name, int type,
+				     uint32_t alen)
+{
+	if (!sh || !sh->prog)
+		return NULL;
+	int k = sl_program_find_param(sh->prog, name);
+	if (k < 0)
+		return NULL;
+	const struct sl_param *sp = &sh->prog->params[k];
+	uint32_t tlen = sp->type.arraylen > 0 ? (uint32_t)sp->type.arraylen : 0;
+	uint32_t want = (uint32_t)sl_type_ncomp(sp->type.base) * (tlen ? tlen : 1);
+	uint32_t have = (uint32_t)sl_type_ncomp(type) * (alen ? alen : 1);
+	return sp->type.base != SL_TYPE_STRING && want == have ? NULL : sp;
+}
+
+/* "TYPE" or "TYPE[N]", in ri->perm. */
+static const char *type_name(struct ri *ri, int type, uint32_t alen)
+{
+	return alen ? rl_arena_printf(ri->perm, "%s[%u]", sl_basetype_name(type), alen)
+		    : sl_basetype_name(type);
+}
+
+/*
+ * Does a primitive variable fit the parameter of its name of the current
+ * surface and displacement shaders, if they have one? One that does not is
+ * ignored with a warning here, where it is written, rather than refused at
+ * each grid. Inside an object definition only the shaders the definition
+ * sets count: the others are the instances', checked at ObjectInstance.
  */
 static bool binds(struct ri *ri, const struct rib_request *r, const struct rib_param *par,
 		  const char *name, int type, uint32_t alen)
 {
-	const struct reyes_shader *shs[2] = {ri->gs.a.surface, ri->gs.a.displacement};
-	uint32_t have = (uint32_t)sl_type_ncomp(type) * (alen ? alen : 1);
+	const struct attrstate *a = &ri->gs.a;
+	bool def = ri->objdef >= 0;
+	const struct reyes_shader *shs[2] = {
+		!def || (a->objset & OBJ_SURFACE) ? a->surface : NULL,
+		!def || (a->objset & OBJ_DISPLACEMENT) ? a->displacement : NULL,
+	};
 	for (int i = 0; i < 2; i++) {
-		if (!shs[i] || !shs[i]->prog)
+		const struct sl_param *sp = misfit(shs[i], name, type, alen);
+		if (!sp)
 			continue;
-		const struct sl_program *prog = shs[i]->prog;
-		int k = sl_program_find_param(prog, name);
-		if (k < 0)
-			continue;
-		const struct sl_type *t = &prog->params[k].type;
-		uint32_t tlen = t->arraylen > 0 ? (uint32_t)t->arraylen : 0;
-		uint32_t want = (uint32_t)sl_type_ncomp(t->base) * (tlen ? tlen : 1);
-		if (t->base != SL_TYPE_STRING && want == have)
-			continue;
-		reyes_ri_warn(ri, par->loc, "%s: primitive variable '%s' (%s%s) does not fit "
-			      "parameter '%s' of shader '%s' (%s%s): ignored", r->name, name,
-			      sl_basetype_name(type),
-			      alen ? rl_arena_printf(ri->perm, "[%u]", alen) : "", name,
-			      shs[i]->name, sl_basetype_name(t->base),
-			      tlen ? rl_arena_printf(ri->perm, "[%u]", tlen) : "");
+		reyes_ri_warn(ri, par->loc, "%s: primitive variable '%s' (%s) does not fit "
+			      "parameter '%s' of shader '%s' (%s): ignored", r->name, name,
+			      type_name(ri, type, alen), name, shs[i]->name,
+			      type_name(ri, sp->type.base,
+					sp->type.arraylen > 0 ? (uint32_t)sp->type.arraylen : 0));
 		return false;
 	}
 	return true;
+}
+
+/*
+ * The primitive variables of an object's primitive @p against the shaders
+ * the instance gives it (those its definition did not set): one that does
+ * not fit is ignored, with a warning at the ObjectInstance @r.
+ */
+static void instance_binds(struct ri *ri, const struct rib_request *r, const char *handle,
+			   const struct obj_prim *op)
+{
+	unsigned set = op->a ? op->a->objset : 0;
+	const struct reyes_shader *shs[2] = {
+		set & OBJ_SURFACE ? NULL : ri->gs.a.surface,
+		set & OBJ_DISPLACEMENT ? NULL : ri->gs.a.displacement,
+	};
+	for (uint32_t v = 0; v < op->p->nvars; v++) {
+		const struct reyes_primvar *pv = &op->p->vars[v];
+		for (int i = 0; i < 2; i++) {
+			const struct sl_param *sp = misfit(shs[i], pv->name, pv->type, pv->arraylen);
+			if (!sp)
+				continue;
+			reyes_ri_warn(ri, r->loc, "ObjectInstance %s: primitive variable '%s' (%s) "
+				      "does not fit parameter '%s' of shader '%s' (%s): ignored",
+				      handle, pv->name, type_name(ri, pv->type, pv->arraylen),
+				      pv->name, shs[i]->name,
+				      type_name(ri, sp->type.base,
+						sp->type.arraylen > 0 ? (uint32_t)sp->type.arraylen
+								      : 0));
+			break;
+		}
+	}
 }
 
 /*
@@ -1103,6 +1157,7 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 	const struct reyes_attrs *bundle = NULL;
 	for (size_t i = 0; i < o->prims.len; i++) {
 		const struct obj_prim *op = &o->prims.data[i];
+		instance_binds(ri, r, handle, op);
 		struct xform x = ri->gs.x;
 		if (!op->identity) {
 			for (int t = 0; t < 2; t++)

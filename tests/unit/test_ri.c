@@ -1110,6 +1110,14 @@ static void test_error_policy(void)
 	CHECK(frames == 1 && last_nprims == 2);
 	CHECK(n == 1 && c.errors == 1 && c.fatal == 0 && c.dropped == 1);
 
+	/* A deforming primitive goes with its malformed sample. */
+	CHECK(!run_opts("WorldBegin\nMotionBegin [0 1]\nPolygon \"P\" [0 0 0 1 0 0 1 1]\n"
+			"Polygon \"P\" [0 0 0 1 0 0 1 1 0]\nMotionEnd\nSphere 1 -1 1 360\nWorldEnd\n",
+			count_prims, &o, &n));
+	CHECK_STR(diag, test_fmt("%s:3: error: Polygon: \"P\" has 8 values, not a multiple of 3\n",
+				 rib_path));
+	CHECK(frames == 1 && last_nprims == 1 && c.fatal == 0 && c.dropped == 1);
+
 	/* An error outside a primitive still holds back its frame. */
 	CHECK(!run_opts("WorldBegin\nSurface \"nosuch\"\nSphere 1 -1 1 360\nWorldEnd\n", NULL, &o,
 			&n));
@@ -1149,6 +1157,14 @@ static void test_error_policy(void)
 		       &o, &n));
 	CHECK_DIAG(test_fmt("%s:3: warning: Sphere: primitive variable 'Kd' (color) does not fit "
 			    "parameter 'Kd' of shader 'plastic' (float): ignored\n", rib_path));
+	CHECK(frames == 1 && c.warnings == 1);
+	/* In an object, against the shaders its instances give it, at each ObjectInstance. */
+	CHECK(run_opts("WorldBegin\nObjectBegin \"ball\"\n"
+		       "Sphere 1 -1 1 360 \"uniform color Kd\" [1 0 0]\nObjectEnd\n"
+		       "Surface \"plastic\"\nObjectInstance \"ball\"\nWorldEnd\n", NULL, &o, &n));
+	CHECK_STR(diag, test_fmt("%s:6: warning: ObjectInstance ball: primitive variable 'Kd' "
+				 "(color) does not fit parameter 'Kd' of shader 'plastic' (float): "
+				 "ignored\n", rib_path));
 	CHECK(frames == 1 && c.warnings == 1);
 }
 
