@@ -184,6 +184,14 @@ expect_stderr '^unsupported.rib:21: error: Atmosphere is not supported: ignored 
 checks=$((checks + 1))
 [ ! -e "$work/strict.shot.exr" ] || fail "--strict baked the shot"
 
+run "bake, a malformed polygon" bash -c "cd '$work' && '$relight' bake -o polys.shot.exr polys.rib"
+expect_no_crash
+expect_status 1
+expect_stderr '^polys.rib:9: error: Polygon: "P" has 10 values, not a multiple of 3$'
+expect_stderr '^polys.rib: 0 warnings \(0 repeats not shown\), 1 error, 1 primitive dropped$'
+checks=$((checks + 1))
+[ -s "$work/polys.shot.exr" ] || fail "the rest was not baked"
+
 # ---- documented ----
 run "render --help" "$relight" render --help
 expect_stdout '--strict'
