@@ -534,7 +534,7 @@ static void summary(const struct render_job *j, const struct reyes_ri_counts *c)
 	unsigned long long warnings = (unsigned long long)(c->warnings + j->warnings) + shading;
 	unsigned long long repeats = (unsigned long long)c->repeats + shading_repeats;
 	fprintf(stderr, "relight render: %u of %u frame%s rendered, %llu warning%s (%llu repeat%s "
-		"not shown), %d error%s", j->rendered, j->nplanned, j->nplanned == 1 ? "" : "s",
+		"not shown), %d error%s", j->rendered, c->frames, c->frames == 1 ? "" : "s",
 		warnings, warnings == 1 ? "" : "s", repeats, repeats == 1 ? "" : "s", c->errors,
 		c->errors == 1 ? "" : "s");
 	if (c->dropped)
@@ -699,6 +699,8 @@ int cmd_render(int argc, char **argv)
 	if (!ok && (counts.fatal > 0 || counts.dropped == 0)) {
 		fputs(check_log ? check_log : "", stderr);
 		free(check_log);
+		if (!job.quiet)
+			summary(&job, &counts);
 		plan_free(&job);
 		reyes_shader_cache_destroy(cache);
 		return CMD_FAILED;

@@ -100,7 +100,6 @@ static void verr(struct ri *ri, struct rib_loc loc, bool warning, const char *fm
 	if (warning) {
 		ri->warnings += !repeat;
 	} else {
-		/* the limit counts what was printed: repeats cannot end the read */
 		ri->nerrors += !repeat;
 		if (ri->in_prim) {
 			ri->prim_failed = true;
@@ -108,7 +107,9 @@ static void verr(struct ri *ri, struct rib_loc loc, bool warning, const char *fm
 		} else {
 			ri->frame_errors++;
 		}
-		if (ri->nerrors + ri->reader_errors >= ri->max_errors)
+		/* the limit counts the errors printed that hold back frames: repeats and
+		   dropped primitives cannot end the read */
+		if (ri->nerrors - ri->prim_errors + ri->reader_errors >= ri->max_errors)
 			ri->stop = true;
 	}
 	rl_strbuf_finish(&b);
@@ -2333,6 +2334,7 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 			.dropped = ri->dropped,
 			.warnings = ri->warnings,
 			.repeats = ri->repeats,
+			.frames = ri->worlds,
 		};
 
 	for (size_t i = 0; i < ri->objects.len; i++)

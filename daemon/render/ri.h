@@ -36,6 +36,7 @@ struct reyes_ri_counts {
 	int dropped;                   /* primitives dropped for their errors (the others rendered) */
 	int warnings;                  /* warnings printed */
 	int repeats;                   /* diagnostics not printed again at the same place */
+	uint32_t frames;               /* frames read (WorldEnd), rendered or held back */
 };
 
 struct reyes_ri_opts {

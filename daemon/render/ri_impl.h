@@ -300,7 +300,8 @@ struct ri {
  * Report "FILE:LINE: error: MESSAGE" at @loc (after the reader's pending
  * messages), once per message and place. It counts against the read and
  * holds back the frame being built, or, inside a primitive's request, drops
- * that primitive only; the read stops when the errors reach opts->max_errors.
+ * that primitive only; the read stops when the errors of the first kind
+ * reach opts->max_errors.
  */
 void reyes_ri_err(struct ri *ri, struct rib_loc loc, const char *fmt, ...)
 	__attribute__((format(printf, 3, 4)));

@@ -166,6 +166,7 @@ sed -e 's/^  Sphere 1 -1 1 360$/  IfBegin "false"\n  Sphere 1 -1 1 360\n  IfEnd/
 run "conditional RIB" bash -c "cd '$work' && '$relight' render if.rib"
 expect_status 1
 expect_stderr '^if.rib:11: error: IfBegin is not supported, and the frame would be wrong without it$'
+expect_stderr '^relight render: 0 of 1 frame rendered, 0 warnings \(0 repeats not shown\), 2 errors$'
 checks=$((checks + 1))
 [ ! -e "$work/if.exr" ] || fail "the frame was rendered"
 

@@ -1110,6 +1110,17 @@ static void test_error_policy(void)
 	CHECK(frames == 1 && last_nprims == 2);
 	CHECK(n == 1 && c.errors == 1 && c.fatal == 0 && c.dropped == 1);
 
+	/* Dropped primitives do not count towards the limit of errors that ends the read. */
+	struct rl_strbuf many = {0};
+	rl_strbuf_printf(&many, "WorldBegin\n");
+	for (int i = 0; i < 30; i++)
+		rl_strbuf_printf(&many, "Polygon \"P\" [0 0 0 1 0 0 1 %d]\n", i);
+	rl_strbuf_printf(&many, "Sphere 1 -1 1 360\nWorldEnd\n");
+	CHECK(!run_opts(rl_strbuf_str(&many), count_prims, &o, &n));
+	CHECK(frames == 1 && last_nprims == 1 && c.dropped == 30 && c.errors == 30 && c.fatal == 0);
+	CHECK(c.frames == 1);
+	rl_strbuf_finish(&many);
+
 	/* A deforming primitive goes with its malformed sample. */
 	CHECK(!run_opts("WorldBegin\nMotionBegin [0 1]\nPolygon \"P\" [0 0 0 1 0 0 1 1]\n"
 			"Polygon \"P\" [0 0 0 1 0 0 1 1 0]\nMotionEnd\nSphere 1 -1 1 360\nWorldEnd\n",
