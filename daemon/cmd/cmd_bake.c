@@ -3,6 +3,7 @@
  * preview reads (daemon/bake/bake.h).
  */
 #include "cmd.h"
+#include "exec.h"
 #include "bake.h"
 #include "config.h"
 
@@ -244,6 +245,13 @@ int cmd_bake(int argc, char **argv)
 	   the library). */
 	job.bo.include_path = includes;
 	bool ok = job.output && bake_rib_file(path, job.output, &job.bo, !job.quiet, NULL);
+	uint64_t shading, repeats;
+	sl_exec_warning_counts(&shading, &repeats);
+	if (ok && job.bo.strict && shading) {
+		fprintf(stderr, "relight bake: error: the shaders warned %llu time%s: an error "
+			"under --strict\n", (unsigned long long)shading, shading == 1 ? "" : "s");
+		ok = false;
+	}
 	if (!ok)
 		rc = CMD_FAILED;
 	free(dyn);

@@ -18,7 +18,6 @@
 
 #include <float.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdarg.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -258,49 +257,6 @@ static void matmul4(const float a[16], const float b[16], float out[16])
 /* Diagnostics, scratch, strings                                             */
 
 /*
- * The warnings printed so far, by their text ("FILE:LINE:COL: warning: ..."):
- * every thread's executors of a program warn at the same places, and each
- * place is printed once a process (up to MAX_WARNED places; past that they
- * are printed each time). Behind warned_lock.
- */
-enum { MAX_WARNED = 4096 };
-static pthread_mutex_t warned_lock = PTHREAD_MUTEX_INITIALIZER;
-static char *warned_lines[2 * MAX_WARNED];
-static size_t nwarned;
-static uint64_t warned_printed, warned_repeats;
-
-/* Was @line printed already? Records it if not (true: a repeat). Under warned_lock. */
-static bool seen_warning(const char *line)
-{
-	uint64_t h = 1469598103934665603u;
-	for (const char *c = line; *c; c++)
-		h = (h ^ (unsigned char)*c) * 1099511628211u;
-	size_t mask = 2 * MAX_WARNED - 1;
-	for (size_t i = (size_t)h & mask;; i = (i + 1) & mask) {
-		if (!warned_lines[i]) {
-			if (nwarned == MAX_WARNED)
-				return false;
-			char *copy = strdup(line);
-			if (copy) {
-				warned_lines[i] = copy;
-				nwarned++;
-			}
-			return false;
-		}
-		if (strcmp(warned_lines[i], line) == 0)
-			return true;
-	}
-}
-
-void sl_exec_warning_counts(uint64_t *printed, uint64_t *repeats)
-{
-	pthread_mutex_lock(&warned_lock);
-	*printed = warned_printed;
-	*repeats = warned_repeats;
-	pthread_mutex_unlock(&warned_lock);
-}
-
-/*
  * "FILE:LINE:COL: WHAT: MESSAGE" on stderr in one write of the whole line:
  * executors of other threads report at the same time. A warning already
  * printed (by any executor) is counted, not printed again.
@@ -325,15 +281,8 @@ static void report(struct sl_exec *x, const struct sl_insn *in, const char *what
 	size_t len = (size_t)n < sizeof(line) - 1 ? (size_t)n : sizeof(line) - 1;
 	n = vsnprintf(line + len, sizeof(line) - len, fmt, ap);
 	len = n < 0 ? len : len + (size_t)n < sizeof(line) - 1 ? len + (size_t)n : sizeof(line) - 1;
-	if (!strcmp(what, "warning")) {
-		pthread_mutex_lock(&warned_lock);
-		bool repeat = seen_warning(line);
-		warned_repeats += repeat;
-		warned_printed += !repeat;
-		pthread_mutex_unlock(&warned_lock);
-		if (repeat)
-			return;
-	}
+	if (!strcmp(what, "warning") && sl_exec_warning_seen(line))
+		return;
 	line[len] = '\n';
 	flockfile(stderr);
 	fwrite(line, 1, len + 1, stderr);

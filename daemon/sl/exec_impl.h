@@ -116,6 +116,12 @@ const char *sl_exec_strdup(struct sl_exec *x, const char *s);
 void sl_exec_warn_once(struct sl_exec *x, const struct sl_insn *in, const char *fmt, ...)
 	__attribute__((format(printf, 3, 4)));
 
+/**
+ * Has the shading warning @line ("FILE:LINE:COL: warning: MESSAGE") been
+ * printed already in this process? Counts it either way (exec_warnings.c).
+ */
+bool sl_exec_warning_seen(const char *line);
+
 /** Print "FILE:LINE:COL: error: MESSAGE" and stop the run (x->failed). */
 void sl_exec_fail(struct sl_exec *x, const struct sl_insn *in, const char *fmt, ...)
 	__attribute__((format(printf, 3, 4)));

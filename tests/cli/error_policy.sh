@@ -185,6 +185,11 @@ expect_stderr '^unsupported.rib:21: error: Atmosphere is not supported: ignored 
 checks=$((checks + 1))
 [ ! -e "$work/strict.shot.exr" ] || fail "--strict baked the shot"
 
+run "bake --strict, a shading warning" bash -c "cd '$work' && '$relight' bake -q -t 4 --strict -o warn.shot.exr warn.rib"
+expect_no_crash
+expect_status 1
+expect_stderr '^relight bake: error: the shaders warned 1 time: an error under --strict$'
+
 run "bake, a malformed polygon" bash -c "cd '$work' && '$relight' bake -o polys.shot.exr polys.rib"
 expect_no_crash
 expect_status 1
