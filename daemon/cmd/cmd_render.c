@@ -86,8 +86,8 @@ static void usage(FILE *out)
 		"and a last line counts the frames, warnings (and repeats not shown) and errors.\n"
 		"\n"
 		"Exit status: 0 when every frame rendered, warnings or not; 1 when the scene has\n"
-		"errors (FILE:LINE: error: MESSAGE: nothing rendered when one makes a frame\n"
-		"meaningless; the other frames rendered without the primitives an error\n"
+		"errors (FILE:LINE: error: MESSAGE; when one makes a frame meaningless nothing\n"
+		"is rendered, else the frames render without the primitives the errors\n"
 		"dropped), a warning under --strict, a --set edit that does not fit, a display\n"
 		"that cannot be written, two outputs of one name, or an image that cannot be\n"
 		"written; 2 on a usage error (an -o extension relight does not write too).\n",
