@@ -1383,18 +1383,27 @@ bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opt
 		snprintf(env_path, sizeof(env_path), "%s%s%s", env, *env && *rman ? ":" : "", rman);
 		shader_path = *env_path ? env_path : NULL;
 	}
+	struct reyes_ri_counts counts = { 0 };
 	struct reyes_ri_opts ri = {
 		.diag = j.diag,
 		.default_shader_path = shader_path,
 		.default_include_path = opts->include_path,
 		.shader_cache = j.shaders = reyes_shader_cache_create(),
 		.default_texture_path = ".",
+		.strict = opts->strict,
+		.counts = &counts,
 		.frame = rib_frame,
 		.user = &j,
 	};
 	rib_report(&j, 0.0, "reading");
 	bool ok = reyes_ri_read(rib, &ri, NULL);
 	reyes_shader_cache_destroy(j.shaders);
+	if (verbose && (counts.warnings || counts.errors))
+		fprintf(j.diag, "%s: %d warning%s (%d repeat%s not shown), %d error%s, %d "
+			"primitive%s dropped\n", rib, counts.warnings,
+			counts.warnings == 1 ? "" : "s", counts.repeats,
+			counts.repeats == 1 ? "" : "s", counts.errors, counts.errors == 1 ? "" : "s",
+			counts.dropped, counts.dropped == 1 ? "" : "s");
 	if (ok && !j.baked) {
 		fprintf(j.diag, "%s: error: the scene has no frame to bake (no WorldBegin ... "
 			"WorldEnd other than shadow passes)\n", rib);

@@ -61,6 +61,8 @@ struct bake_opts {
 	const char *shader_path;
 	/* bake_rib_file's folders for shaders' #include, colon-separated (NULL: none). */
 	const char *include_path;
+	/* bake_rib_file: every warning of the scene is an error (relight bake --strict). */
+	bool strict;
 };
 
 #define BAKE_DEFAULT_TILE_BUDGET (512ull << 20)

@@ -3,6 +3,7 @@
  * preview reads (daemon/bake/bake.h).
  */
 #include "cmd.h"
+#include "exec.h"
 #include "bake.h"
 #include "config.h"
 
@@ -49,6 +50,8 @@ static void usage(FILE *out)
 		"                           shader's own folder (repeatable, in order; the\n"
 		"                           scene's Option \"searchpath\" \"include\" replaces\n"
 		"                           the list, '@' in it standing for the -I folders)\n"
+		"  --strict                 Every warning of the scene is an error: a scene\n"
+		"                           with any is not baked\n"
 		"  -q, --quiet              No progress bar and no summary\n"
 		"  -h, --help               Show this help and exit\n"
 		"\n"
@@ -57,8 +60,13 @@ static void usage(FILE *out)
 		"(%s): first a file NAME.sl, then a .sl file along the path that declares\n"
 		"the shader NAME; \"null\" is the built-in shader that does nothing.\n"
 		"\n"
-		"Exit status: 0 on success, 1 when the scene has errors or cannot be baked\n"
-		"(reported with the file and line), 2 on a usage error.\n",
+		"What relight does not support in the scene is a warning (FILE:LINE: warning:)\n"
+		"naming what is ignored, and the shot is baked; a primitive whose data is\n"
+		"malformed is an error that drops it, the rest is baked.\n"
+		"\n"
+		"Exit status: 0 on success, warnings or not; 1 when the scene has errors\n"
+		"(reported with the file and line: a primitive dropped, or nothing baked), a\n"
+		"warning under --strict, or it cannot be baked; 2 on a usage error.\n",
 		BAKE_DEFAULT_TILE_BUDGET >> 20, (double)BAKE_DEFAULT_SHADOW_RATE,
 		RELIGHT_SOURCE_SHADER_DIR);
 }
@@ -123,6 +131,7 @@ int cmd_bake(int argc, char **argv)
 		{ "shadow-rate", required_argument, NULL, 'r' },
 		{ "full-float", no_argument, NULL, 'f' },
 		{ "quiet", no_argument, NULL, 'q' },
+		{ "strict", no_argument, NULL, 'S' },
 		{ NULL, 0, NULL, 0 },
 	};
 	optind = 1;
@@ -203,6 +212,9 @@ int cmd_bake(int argc, char **argv)
 		case 'q':
 			job.quiet = true;
 			break;
+		case 'S':
+			job.bo.strict = true;
+			break;
 		case ':':
 			free(dyn);
 			return usage_error("option '%s' needs an argument", argv[optind - 1]);
@@ -233,6 +245,13 @@ int cmd_bake(int argc, char **argv)
 	   the library). */
 	job.bo.include_path = includes;
 	bool ok = job.output && bake_rib_file(path, job.output, &job.bo, !job.quiet, NULL);
+	uint64_t shading, repeats;
+	sl_exec_warning_counts(&shading, &repeats);
+	if (ok && job.bo.strict && shading) {
+		fprintf(stderr, "relight bake: error: the shaders warned %llu time%s: an error "
+			"under --strict\n", (unsigned long long)shading, shading == 1 ? "" : "s");
+		ok = false;
+	}
 	if (!ok)
 		rc = CMD_FAILED;
 	free(dyn);

@@ -6,6 +6,7 @@
 /* realpath() is an X/Open part of POSIX 2008. */
 #define _XOPEN_SOURCE 700
 #include "cmd.h"
+#include "exec.h"
 #include "reyes.h"
 #include "ri.h"
 #include "shader_cache.h"
@@ -35,8 +36,14 @@ static void usage(FILE *out)
 		"warning; any other type or extension (tiff, .jpg) is an error.\n"
 		"\n"
 		"The whole scene is read and checked first: nothing is rendered or written when\n"
-		"it has errors, a --set edit does not fit it, or two outputs (two displays, two\n"
-		"frames) would write the same file.\n"
+		"it has errors that make a frame meaningless (syntax, unbalanced blocks, a\n"
+		"missing shader or archive, an option that cannot work), a --set edit does not\n"
+		"fit it, or two outputs (two displays, two frames) would write the same file.\n"
+		"What relight does not know or support (a request, option, attribute, shader\n"
+		"parameter) is a warning, FILE:LINE: warning: MESSAGE, naming what is ignored:\n"
+		"the frame renders. A primitive whose data is malformed is an error that drops\n"
+		"that primitive; the rest of the frame renders. Each message is printed once per\n"
+		"place (a request an archive repeats reports its line once).\n"
 		"\n"
 		"Options:\n"
 		"  -o, --output FILE      Write each frame's first image display to FILE (.exr,\n"
@@ -64,6 +71,8 @@ static void usage(FILE *out)
 		"                         shader's own folder (repeatable, in order; the\n"
 		"                         scene's Option \"searchpath\" \"include\" replaces\n"
 		"                         the list, '@' in it standing for the -I folders)\n"
+		"  --strict               Every warning is an error: a scene with any renders\n"
+		"                         nothing\n"
 		"  -q, --quiet            No progress bar and no summary\n"
 		"  -h, --help             Show this help and exit\n"
 		"\n"
@@ -73,12 +82,15 @@ static void usage(FILE *out)
 		"the shader NAME (surface NAME(...)); \"null\" is the built-in shader that does\n"
 		"nothing. Each shader file is compiled once a run.\n"
 		"A progress bar is shown when standard error is a terminal; at the end a summary\n"
-		"gives the time, the micropolygons shaded, the subpixel samples and the peak memory.\n"
+		"gives each frame's time, micropolygons shaded, subpixel samples and peak memory,\n"
+		"and a last line counts the frames, warnings (and repeats not shown) and errors.\n"
 		"\n"
-		"Exit status: 0 on success, 1 when the scene has errors (reported as\n"
-		"FILE:LINE: error: MESSAGE; a --set edit that does not fit, a display that\n"
-		"cannot be written and two outputs of one name are errors) or an image cannot\n"
-		"be written, 2 on a usage error (an -o extension relight does not write too).\n",
+		"Exit status: 0 when every frame rendered, warnings or not; 1 when the scene has\n"
+		"errors (FILE:LINE: error: MESSAGE; when one makes a frame meaningless nothing\n"
+		"is rendered, else the frames render without the primitives the errors\n"
+		"dropped), a warning under --strict, a --set edit that does not fit, a display\n"
+		"that cannot be written, two outputs of one name, or an image that cannot be\n"
+		"written; 2 on a usage error (an -o extension relight does not write too).\n",
 		MAX_EDITS, RELIGHT_SOURCE_SHADER_DIR);
 }
 
@@ -118,6 +130,9 @@ struct render_job {
 	bool quiet;
 	const char *output;     /* -o, or NULL */
 	bool checking;          /* the first read: record the frames, render nothing */
+	bool strict;            /* warnings are errors */
+	int warnings;           /* the run's own, about displays */
+	uint32_t rendered;      /* frames rendered */
 	struct frame_plan *plan;
 	uint32_t nplanned, cap;
 };
@@ -206,17 +221,18 @@ static bool output_kind(const char *name, enum out_kind *kind)
 		"\"framebuffer\""
 
 /* A display's format from its type and name; false (reported at @o->where) when unwritable. */
-static bool display_kind(struct out *o)
+static bool display_kind(struct render_job *j, struct out *o)
 {
 	const char *ext = extension(o->name);
 	const char *t = o->type;
 	bool exr_name = !*ext || ext_is(ext, "exr"), png_name = ext_is(ext, "png");
 	if (!strcmp(t, "framebuffer") || !strcmp(t, "it")) {
-		fprintf(stderr, "%s: warning: Display \"%s\" \"%s\": relight has no framebuffer; "
-			"the display is skipped (-o FILE writes it to a file)\n", o->where, o->name,
-			t);
+		fprintf(stderr, "%s: %s: Display \"%s\" \"%s\": relight has no framebuffer; "
+			"the display is skipped (-o FILE writes it to a file)\n", o->where,
+			j->strict ? "error" : "warning", o->name, t);
 		o->kind = OUT_SKIP;
-		return true;
+		j->warnings++;
+		return !j->strict;
 	}
 	if (!strcmp(t, "file") && (exr_name || png_name)) {
 		o->kind = png_name ? OUT_PNG : OUT_EXR;
@@ -387,7 +403,7 @@ static bool plan_outputs(struct render_job *j)
 				o->kind = okind;
 				o->from_output = true;
 				first = false;
-			} else if (!display_kind(o)) {
+			} else if (!display_kind(j, o)) {
 				ok = false;
 				continue;
 			}
@@ -494,6 +510,7 @@ static bool on_frame(void *user, const struct reyes_scene *scene)
 		fprintf(stderr, "frame %d: %ux%u, %u primitives, %u lights\n", (int)f->number,
 			so->xres, so->yres, scene->nprims, scene->nlights);
 	ok = reyes_render(&sc, &j->ro, &st);
+	j->rendered += ok;
 	if (ok && !j->quiet) {
 		for (uint32_t i = 0; i < nd; i++)
 			fprintf(stderr, "wrote %s\n", ds[i].name);
@@ -507,6 +524,22 @@ static bool on_frame(void *user, const struct reyes_scene *scene)
 out:
 	free(ds);
 	return ok;
+}
+
+/* The run's last line: frames, warnings (and the repeats not shown), errors. */
+static void summary(const struct render_job *j, const struct reyes_ri_counts *c)
+{
+	uint64_t shading, shading_repeats;
+	sl_exec_warning_counts(&shading, &shading_repeats);
+	unsigned long long warnings = (unsigned long long)(c->warnings + j->warnings) + shading;
+	unsigned long long repeats = (unsigned long long)c->repeats + shading_repeats;
+	fprintf(stderr, "relight render: %u of %u frame%s rendered, %llu warning%s (%llu repeat%s "
+		"not shown), %d error%s", j->rendered, c->frames, c->frames == 1 ? "" : "s",
+		warnings, warnings == 1 ? "" : "s", repeats, repeats == 1 ? "" : "s", c->errors,
+		c->errors == 1 ? "" : "s");
+	if (c->dropped)
+		fprintf(stderr, ", %d primitive%s dropped", c->dropped, c->dropped == 1 ? "" : "s");
+	fputc('\n', stderr);
 }
 
 int cmd_render(int argc, char **argv)
@@ -526,6 +559,7 @@ int cmd_render(int argc, char **argv)
 		{ "bucket", required_argument, NULL, 'b' },
 		{ "set", required_argument, NULL, 's' },
 		{ "quiet", no_argument, NULL, 'q' },
+		{ "strict", no_argument, NULL, 'S' },
 		{ NULL, 0, NULL, 0 },
 	};
 	optind = 1;
@@ -599,6 +633,9 @@ int cmd_render(int argc, char **argv)
 		case 'q':
 			job.quiet = true;
 			break;
+		case 'S':
+			job.strict = true;
+			break;
 		case ':':
 			return usage_error("option '%s' needs an argument", argv[optind - 1]);
 		default:
@@ -624,6 +661,7 @@ int cmd_render(int argc, char **argv)
 	/* Each shader is compiled once for both reads and every frame. */
 	struct reyes_shader_cache *cache = reyes_shader_cache_create();
 	job.ro.shader_cache = cache;
+	struct reyes_ri_counts counts = { 0 };
 	struct reyes_ri_opts ri = {
 		.diag = stderr,
 		.default_shader_path = shader_path,
@@ -632,6 +670,8 @@ int cmd_render(int argc, char **argv)
 		.shader_cache = cache,
 		.light_edits = edits,
 		.nlight_edits = nedits,
+		.strict = job.strict,
+		.counts = &counts,
 		.frame = on_frame,
 		.user = &job,
 	};
@@ -639,7 +679,8 @@ int cmd_render(int argc, char **argv)
 	/*
 	 * First read: the whole scene checked (--set names and values included)
 	 * and its outputs planned, nothing rendered or written. Its diagnostics
-	 * are shown only when it fails: the rendering read repeats the warnings.
+	 * are shown only when it fails: the rendering read repeats the warnings,
+	 * and the errors of primitives it drops (which do not stop the run).
 	 */
 	char *check_log = NULL;
 	size_t check_len = 0;
@@ -655,9 +696,11 @@ int cmd_render(int argc, char **argv)
 	int nerrors = 0;
 	bool ok = reyes_ri_read(path, &ri, &nerrors);
 	fclose(check_diag);
-	if (!ok) {
+	if (!ok && (counts.fatal > 0 || counts.dropped == 0)) {
 		fputs(check_log ? check_log : "", stderr);
 		free(check_log);
+		if (!job.quiet)
+			summary(&job, &counts);
 		plan_free(&job);
 		reyes_shader_cache_destroy(cache);
 		return CMD_FAILED;
@@ -681,6 +724,15 @@ int cmd_render(int argc, char **argv)
 	ri.check_only = false;
 	job.checking = false;
 	ok = reyes_ri_read(path, &ri, &nerrors);
+	uint64_t shading, shading_repeats;
+	sl_exec_warning_counts(&shading, &shading_repeats);
+	if (job.strict && shading) {
+		fprintf(stderr, "relight render: error: the shaders warned %llu time%s: an error "
+			"under --strict\n", (unsigned long long)shading, shading == 1 ? "" : "s");
+		ok = false;
+	}
+	if (!job.quiet)
+		summary(&job, &counts);
 	plan_free(&job);
 	reyes_shader_cache_destroy(cache);
 	return ok ? CMD_OK : CMD_FAILED;

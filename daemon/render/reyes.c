@@ -667,6 +667,10 @@ static void set_params(struct sl_exec *x, const struct reyes_shader *sh,
 		const struct sl_param *p = &prog->params[k];
 		int nc = sl_type_ncomp(g->vars[i].type) *
 			 (int)(g->vars[i].arraylen ? g->vars[i].arraylen : 1);
+		/* one that does not fit was ignored with a warning at its request */
+		if (p->type.base == SL_TYPE_STRING ||
+		    nc != sl_type_ncomp(p->type.base) * (p->type.arraylen > 0 ? p->type.arraylen : 1))
+			continue;
 		if (p->type.detail == SL_DETAIL_VARYING) {
 			sl_exec_set_param(x, p->name, g->vars[i].data, (uint32_t)nc * g->n);
 			continue;

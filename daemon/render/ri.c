@@ -67,18 +67,49 @@ static const char *const blk_begin[] = {
 
 static void forward_reader_diag(struct ri *ri);
 
+/*
+ * One diagnostic. Each (message, place) is printed once a read: a request
+ * repeated by a loop of ReadArchive reports its place once, the repeats
+ * counted. --strict makes a warning an error. An error inside a primitive's
+ * request drops that primitive only; any other holds back its frame.
+ */
 static void verr(struct ri *ri, struct rib_loc loc, bool warning, const char *fmt, va_list ap)
 {
 	forward_reader_diag(ri);
+	bool strict = warning && ri->opts->strict;
+	if (strict)
+		warning = false;
 	struct rl_strbuf b = {0};
+	rl_strbuf_printf(&b, "%c%s:%u: ", warning ? 'w' : 'e', loc.file ? loc.file : "",
+			 (unsigned)loc.line);
+	size_t msg = b.len;
 	rl_strbuf_vprintf(&b, fmt, ap);
-	if (warning) {
-		rib_warning(ri->diag, loc, "%s", rl_strbuf_str(&b));
+	if (strict)
+		rl_strbuf_printf(&b, " (an error under --strict)");
+	uintptr_t seen;
+	bool repeat = strmap_get(&ri->seen, rl_strbuf_str(&b), &seen);
+	if (repeat) {
+		ri->repeats++;
 	} else {
-		rib_error(ri->diag, loc, "%s", rl_strbuf_str(&b));
-		ri->nerrors++;
-		ri->frame_errors++;
-		if (ri->nerrors + ri->reader_errors >= ri->max_errors)
+		strmap_put(&ri->seen, rl_arena_strdup(ri->perm, rl_strbuf_str(&b)), 1);
+		if (warning)
+			rib_warning(ri->diag, loc, "%s", rl_strbuf_str(&b) + msg);
+		else
+			rib_error(ri->diag, loc, "%s", rl_strbuf_str(&b) + msg);
+	}
+	if (warning) {
+		ri->warnings += !repeat;
+	} else {
+		ri->nerrors += !repeat;
+		if (ri->in_prim) {
+			ri->prim_failed = true;
+			ri->prim_errors += !repeat;
+		} else {
+			ri->frame_errors++;
+		}
+		/* the limit counts the errors printed that hold back frames: repeats and
+		   dropped primitives cannot end the read */
+		if (ri->nerrors - ri->prim_errors + ri->reader_errors >= ri->max_errors)
 			ri->stop = true;
 	}
 	rl_strbuf_finish(&b);
@@ -1560,27 +1591,25 @@ static bool shader_params(struct ri *ri, const struct rib_request *r, const char
 		}
 		int pi = sl_program_find_param(prog, name);
 		if (pi < 0) {
-			reyes_ri_err(ri, p->loc, "shader '%s' has no parameter '%s'", shname, name);
-			ok = false;
+			reyes_ri_warn(ri, p->loc, "shader '%s' has no parameter '%s': ignored",
+				      shname, name);
 			continue;
 		}
 		const struct sl_param *sp = &prog->params[pi];
 		int base = sp->type.base;
 		uint32_t alen = sp->type.arraylen > 0 ? (uint32_t)sp->type.arraylen : 0;
 		if (has && !same_type(&d, base, alen)) {
-			reyes_ri_err(ri, p->loc,
-				     "parameter '%s' of shader '%s' is %s, but it is given as %s%s",
-				     name, shname, type_desc(ri, base, alen),
-				     d.hpoint ? "hpoint" : type_desc(ri, d.type, 0),
-				     d.arraylen ? rl_arena_printf(ri->perm, "[%u]", d.arraylen)
-						: "");
-			ok = false;
+			reyes_ri_warn(ri, p->loc,
+				      "parameter '%s' of shader '%s' is %s, but it is given as %s%s: "
+				      "ignored", name, shname, type_desc(ri, base, alen),
+				      d.hpoint ? "hpoint" : type_desc(ri, d.type, 0),
+				      d.arraylen ? rl_arena_printf(ri->perm, "[%u]", d.arraylen)
+						 : "");
 			continue;
 		}
 		if (seen[pi]) {
-			reyes_ri_err(ri, p->loc, "parameter '%s' of shader '%s' is given twice",
-				     name, shname);
-			ok = false;
+			reyes_ri_warn(ri, p->loc, "parameter '%s' of shader '%s' is given twice: "
+				      "the first value is kept", name, shname);
 			continue;
 		}
 		seen[pi] = true;
@@ -2105,6 +2134,7 @@ enum {
 	F_OPTION = 1 << 0,   /* only before WorldBegin (checked by the handler) */
 	F_WORLD = 1 << 1,    /* only inside the world */
 	F_MOTION = 1 << 2,   /* may be a sample of a motion block */
+	F_PRIM = 1 << 3,     /* a primitive: its errors drop it, not the frame */
 };
 
 struct handler {
@@ -2179,20 +2209,36 @@ static const struct handler handlers[] = {
 	{"MakeShadow", req_make_shadow, 0},
 	{"MakeLatLongEnvironment", req_make_latlong, 0},
 	{"MakeCubeFaceEnvironment", req_make_cubeface, 0},
-	{"Sphere", reyes_ri_req_quadric, F_MOTION},
-	{"Cylinder", reyes_ri_req_quadric, F_MOTION},
-	{"Cone", reyes_ri_req_quadric, F_MOTION},
-	{"Disk", reyes_ri_req_quadric, F_MOTION},
-	{"Hyperboloid", reyes_ri_req_quadric, F_MOTION},
-	{"Paraboloid", reyes_ri_req_quadric, F_MOTION},
-	{"Torus", reyes_ri_req_quadric, F_MOTION},
-	{"Polygon", reyes_ri_req_polygon, F_MOTION},
-	{"GeneralPolygon", reyes_ri_req_general_polygon, F_MOTION},
-	{"PointsPolygons", reyes_ri_req_points_polygons, F_MOTION},
-	{"PointsGeneralPolygons", reyes_ri_req_points_polygons, F_MOTION},
-	{"Patch", reyes_ri_req_patch, F_MOTION},
-	{"PatchMesh", reyes_ri_req_patch_mesh, F_MOTION},
+	{"Sphere", reyes_ri_req_quadric, F_MOTION | F_PRIM},
+	{"Cylinder", reyes_ri_req_quadric, F_MOTION | F_PRIM},
+	{"Cone", reyes_ri_req_quadric, F_MOTION | F_PRIM},
+	{"Disk", reyes_ri_req_quadric, F_MOTION | F_PRIM},
+	{"Hyperboloid", reyes_ri_req_quadric, F_MOTION | F_PRIM},
+	{"Paraboloid", reyes_ri_req_quadric, F_MOTION | F_PRIM},
+	{"Torus", reyes_ri_req_quadric, F_MOTION | F_PRIM},
+	{"Polygon", reyes_ri_req_polygon, F_MOTION | F_PRIM},
+	{"GeneralPolygon", reyes_ri_req_general_polygon, F_MOTION | F_PRIM},
+	{"PointsPolygons", reyes_ri_req_points_polygons, F_MOTION | F_PRIM},
+	{"PointsGeneralPolygons", reyes_ri_req_points_polygons, F_MOTION | F_PRIM},
+	{"Patch", reyes_ri_req_patch, F_MOTION | F_PRIM},
+	{"PatchMesh", reyes_ri_req_patch_mesh, F_MOTION | F_PRIM},
 };
+
+/*
+ * Requests relight does not support whose absence changes what the rest of
+ * the scene means (conditional RIB would render every branch, an inline
+ * archive its contents in place): errors, not warnings.
+ */
+static bool refused(const char *name)
+{
+	static const char *const names[] = {
+		"ArchiveBegin", "ArchiveEnd", "Else", "ElseIf", "IfBegin", "IfEnd",
+	};
+	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]); i++)
+		if (strcmp(names[i], name) == 0)
+			return true;
+	return false;
+}
 
 static bool on_request(void *user, const struct rib_request *r)
 {
@@ -2206,8 +2252,21 @@ static bool on_request(void *user, const struct rib_request *r)
 	for (size_t i = 0; i < sizeof(handlers) / sizeof(handlers[0]) && !h; i++)
 		if (handlers[i].name[0] == r->name[0] && strcmp(handlers[i].name, r->name) == 0)
 			h = &handlers[i];
-	if (!h) {
+	if (r->known == RIB_UNSUPPORTED && refused(r->name)) {
+		reyes_ri_err(ri, r->loc, "%s is not supported, and the frame would be wrong "
+			     "without it", r->name);
+		return !ri->stop;
+	}
+	if (r->known == RIB_UNSUPPORTED || (!h && r->known == RIB_KNOWN)) {
 		reyes_ri_warn(ri, r->loc, "%s is not supported: ignored", r->name);
+		return !ri->stop;
+	}
+	if (!h) {
+		if (r->near)
+			reyes_ri_warn(ri, r->loc, "unknown request '%s' ignored; did you mean '%s'?",
+				      r->name, r->near);
+		else
+			reyes_ri_warn(ri, r->loc, "unknown request '%s' ignored", r->name);
 		return !ri->stop;
 	}
 	if (ri->motion.active && !(h->flags & F_MOTION)) {
@@ -2217,6 +2276,17 @@ static bool on_request(void *user, const struct rib_request *r)
 	}
 	if ((h->flags & F_WORLD) && !ri->world) {
 		reyes_ri_err(ri, r->loc, "%s outside WorldBegin/WorldEnd", r->name);
+		return !ri->stop;
+	}
+	if (h->flags & F_PRIM) {
+		ri->in_prim = true;
+		ri->prim_failed = false;
+		h->fn(ri, r);
+		ri->in_prim = false;
+		ri->dropped += ri->prim_failed;
+		/* a deforming primitive goes with the sample it lacks */
+		if (ri->prim_failed && ri->motion.active)
+			ri->motion.bad = true;
 		return !ri->stop;
 	}
 	h->fn(ri, r);
@@ -2296,6 +2366,15 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 	int total = ri->nerrors + ri->reader_errors;
 	if (nerrors)
 		*nerrors = total;
+	if (opts->counts)
+		*opts->counts = (struct reyes_ri_counts){
+			.errors = total,
+			.fatal = total - ri->prim_errors,
+			.dropped = ri->dropped,
+			.warnings = ri->warnings,
+			.repeats = ri->repeats,
+			.frames = ri->worlds,
+		};
 
 	for (size_t i = 0; i < ri->objects.len; i++)
 		rl_vec_free(ri->objects.data[i].prims);
@@ -2317,6 +2396,7 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 	strmap_free(&ri->world_object_index);
 	strmap_free(&ri->light_index);
 	strmap_free(&ri->space_index);
+	strmap_free(&ri->seen);
 	for (size_t i = 0; i < ri->progs.len; i++)
 		sl_program_destroy(ri->progs.data[i]);
 	rl_vec_free(ri->progs);

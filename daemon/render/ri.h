@@ -29,9 +29,23 @@ struct reyes_light_edit {
 	uint32_t nvalues;
 };
 
+/** What a read reported (struct reyes_ri_opts's counts). */
+struct reyes_ri_counts {
+	int errors;                    /* all errors printed, the reader's included */
+	int fatal;                     /* of those, the ones that held back a frame or the read */
+	int dropped;                   /* primitives dropped for their errors (the others rendered) */
+	int warnings;                  /* warnings printed */
+	int repeats;                   /* diagnostics not printed again at the same place */
+	uint32_t frames;               /* frames read (WorldEnd), rendered or held back */
+};
+
 struct reyes_ri_opts {
 	FILE *diag;                    /* diagnostics, NULL: stderr */
 	int max_errors;                /* 0: 20 */
+	/** Every warning is an error (relight render --strict). */
+	bool strict;
+	/** Where the read's counts go at its end; NULL: nowhere. */
+	struct reyes_ri_counts *counts;
 	/*
 	 * The default shader search path ('@' in a searchpath option stands for
 	 * it): colon-separated; the project's shaders/ directory comes last.
@@ -77,10 +91,17 @@ struct reyes_ri_opts {
 
 /**
  * Read the RIB file at @path and render its frames through opts->frame.
- * Errors: "FILE:LINE: error: MESSAGE" (unknown requests, bad arguments,
- * unbalanced blocks, missing shaders or archives, parameters of unknown
- * type...). Unknown Option/Attribute names are warnings. Returns false if
- * there was any error; *nerrors gets the count (may be NULL).
+ * The error policy (docs/renderer.md, "Errors and warnings"):
+ *  - "FILE:LINE: warning: MESSAGE" for what is ignored: requests,
+ *    options, attributes and parameters relight does not know or support,
+ *    shader parameters the shader does not declare. The frame renders.
+ *  - "FILE:LINE: error: MESSAGE" inside a primitive's request (malformed
+ *    data): that primitive is dropped, the rest of the frame renders.
+ *  - any other error (syntax, unbalanced blocks, missing shaders or
+ *    archives, options that cannot work) holds back its frame.
+ * Each message is printed once per place; opts->strict makes warnings
+ * errors. Returns false if there was any error; *nerrors gets the count
+ * (may be NULL), opts->counts the details.
  */
 bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerrors);
 

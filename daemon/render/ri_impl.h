@@ -239,7 +239,14 @@ struct ri {
 	int max_errors;
 	int nerrors;              /* the builder's own, plus frames the callback refused */
 	int reader_errors;
-	int frame_errors;         /* in the frame being built */
+	int frame_errors;         /* in the frame being built: it is not rendered */
+	int warnings;             /* printed */
+	int repeats;              /* diagnostics not printed again at the same place */
+	int dropped;              /* primitives dropped for their errors */
+	int prim_errors;          /* errors of those primitives (in nerrors) */
+	bool in_prim;             /* a primitive's request is being built */
+	bool prim_failed;         /* ... and it had an error */
+	struct strmap seen;       /* 'w' or 'e' + "FILE:LINE: message" printed */
 	uint32_t worlds;          /* worlds ended so far */
 	bool stop;
 	bool *edit_seen;          /* per opts->light_edits: a LightSource had its handle */
@@ -303,13 +310,18 @@ struct ri {
 
 /**
  * Report "FILE:LINE: error: MESSAGE" at @loc (after the reader's pending
- * messages). It counts against the read and holds back the frame being
- * built; the read stops when the errors reach opts->max_errors.
+ * messages), once per message and place. It counts against the read and
+ * holds back the frame being built, or, inside a primitive's request, drops
+ * that primitive only; the read stops when the errors of the first kind
+ * reach opts->max_errors.
  */
 void reyes_ri_err(struct ri *ri, struct rib_loc loc, const char *fmt, ...)
 	__attribute__((format(printf, 3, 4)));
 
-/** Report "FILE:LINE: warning: MESSAGE" at @loc; warnings count nothing. */
+/**
+ * Report "FILE:LINE: warning: MESSAGE" at @loc, once per message and place:
+ * what is ignored, the frame renders. With opts->strict it is an error.
+ */
 void reyes_ri_warn(struct ri *ri, struct rib_loc loc, const char *fmt, ...)
 	__attribute__((format(printf, 3, 4)));
 

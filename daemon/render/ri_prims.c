@@ -226,11 +226,16 @@ static const struct {
 	{"st", {.cls = REYES_VARYING, .type = SL_TYPE_FLOAT, .arraylen = 2}},
 };
 
-/* The type of a primitive variable: inline declaration, Declare, or standard. */
+/*
+ * The type of a primitive variable: inline declaration, Declare, or
+ * standard. False when it has none (*unknown set, not reported: the caller
+ * ignores it with a warning) or its token is malformed (reported).
+ */
 static bool var_decl(struct ri *ri, const struct rib_request *r, const struct rib_param *p,
-		     struct decl *d, const char **name)
+		     struct decl *d, const char **name, bool *unknown)
 {
 	bool has;
+	*unknown = false;
 	if (!reyes_ri_param_token(ri, p, r->name, d, &has, name))
 		return false;
 	if (has)
@@ -245,8 +250,7 @@ static bool var_decl(struct ri *ri, const struct rib_request *r, const struct ri
 			*d = std_vars[i].d;
 			return true;
 		}
-	reyes_ri_err(ri, p->loc, "%s: unknown primitive variable '%s' (declare it with Declare "
-		     "or an inline type)", r->name, *name);
+	*unknown = true;
 	return false;
 }
 
@@ -273,8 +277,12 @@ static bool point_count(struct ri *ri, const struct rib_request *r, bool height_
 		const struct rib_param *p = &r->params[i];
 		struct decl d;
 		const char *name;
-		if (!var_decl(ri, r, p, &d, &name))
+		bool unknown;
+		if (!var_decl(ri, r, p, &d, &name, &unknown)) {
+			if (unknown)
+				continue;       /* prim_vars warns */
 			return false;
+		}
 		if (!is_position(name))
 			continue;
 		bool pz = strcmp(name, "Pz") == 0;
@@ -304,6 +312,95 @@ static bool point_count(struct ri *ri, const struct rib_request *r, bool height_
 }
 
 /*
+ * The parameter of shader @sh that a primitive variable @name of @type
+ * (@alen: its array length, 0 for none) would bind to but does not fit, or
+ * NULL. A parameter takes a variable of as many floats (a colour takes a
+ * point), and no string.
+ */
+static const struct sl_param *misfit(const struct reyes_shader *sh, const char *name, int type,
+				     uint32_t alen)
+{
+	if (!sh || !sh->prog)
+		return NULL;
+	int k = sl_program_find_param(sh->prog, name);
+	if (k < 0)
+		return NULL;
+	const struct sl_param *sp = &sh->prog->params[k];
+	uint32_t tlen = sp->type.arraylen > 0 ? (uint32_t)sp->type.arraylen : 0;
+	uint32_t want = (uint32_t)sl_type_ncomp(sp->type.base) * (tlen ? tlen : 1);
+	uint32_t have = (uint32_t)sl_type_ncomp(type) * (alen ? alen : 1);
+	return sp->type.base != SL_TYPE_STRING && want == have ? NULL : sp;
+}
+
+/* "TYPE" or "TYPE[N]", in ri->perm. */
+static const char *type_name(struct ri *ri, int type, uint32_t alen)
+{
+	return alen ? rl_arena_printf(ri->perm, "%s[%u]", sl_basetype_name(type), alen)
+		    : sl_basetype_name(type);
+}
+
+/*
+ * Does a primitive variable fit the parameter of its name of the current
+ * surface and displacement shaders, if they have one? One that does not is
+ * ignored with a warning here, where it is written, rather than refused at
+ * each grid. Inside an object definition only the shaders the definition
+ * sets count: the others are the instances', checked at ObjectInstance.
+ */
+static bool binds(struct ri *ri, const struct rib_request *r, const struct rib_param *par,
+		  const char *name, int type, uint32_t alen)
+{
+	const struct attrstate *a = &ri->gs.a;
+	bool def = ri->objdef >= 0;
+	const struct reyes_shader *shs[2] = {
+		!def || (a->objset & OBJ_SURFACE) ? a->surface : NULL,
+		!def || (a->objset & OBJ_DISPLACEMENT) ? a->displacement : NULL,
+	};
+	for (int i = 0; i < 2; i++) {
+		const struct sl_param *sp = misfit(shs[i], name, type, alen);
+		if (!sp)
+			continue;
+		reyes_ri_warn(ri, par->loc, "%s: primitive variable '%s' (%s) does not fit "
+			      "parameter '%s' of shader '%s' (%s): ignored", r->name, name,
+			      type_name(ri, type, alen), name, shs[i]->name,
+			      type_name(ri, sp->type.base,
+					sp->type.arraylen > 0 ? (uint32_t)sp->type.arraylen : 0));
+		return false;
+	}
+	return true;
+}
+
+/*
+ * The primitive variables of an object's primitive @p against the shaders
+ * the instance gives it (those its definition did not set): one that does
+ * not fit is ignored, with a warning at the ObjectInstance @r.
+ */
+static void instance_binds(struct ri *ri, const struct rib_request *r, const char *handle,
+			   const struct obj_prim *op)
+{
+	unsigned set = op->a ? op->a->objset : 0;
+	const struct reyes_shader *shs[2] = {
+		set & OBJ_SURFACE ? NULL : ri->gs.a.surface,
+		set & OBJ_DISPLACEMENT ? NULL : ri->gs.a.displacement,
+	};
+	for (uint32_t v = 0; v < op->p->nvars; v++) {
+		const struct reyes_primvar *pv = &op->p->vars[v];
+		for (int i = 0; i < 2; i++) {
+			const struct sl_param *sp = misfit(shs[i], pv->name, pv->type, pv->arraylen);
+			if (!sp)
+				continue;
+			reyes_ri_warn(ri, r->loc, "ObjectInstance %s: primitive variable '%s' (%s) "
+				      "does not fit parameter '%s' of shader '%s' (%s): ignored",
+				      handle, pv->name, type_name(ri, pv->type, pv->arraylen),
+				      pv->name, shs[i]->name,
+				      type_name(ri, sp->type.base,
+						sp->type.arraylen > 0 ? (uint32_t)sp->type.arraylen
+								      : 0));
+			break;
+		}
+	}
+}
+
+/*
  * The primitive variables of @r's parameter list into @p, each checked
  * against the count of its class: sizes[class] items.
  */
@@ -323,8 +420,15 @@ static bool prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t
 		const struct rib_param *par = &r->params[i];
 		struct decl d;
 		const char *name;
-		if (!var_decl(ri, r, par, &d, &name))
-			return false;
+		bool unknown;
+		if (!var_decl(ri, r, par, &d, &name, &unknown)) {
+			if (!unknown)
+				return false;
+			reyes_ri_warn(ri, par->loc, "%s: primitive variable '%s' has no type "
+				      "(declare it with Declare or an inline type): ignored", r->name,
+				      name);
+			continue;
+		}
 		if (d.type == SL_TYPE_STRING) {
 			reyes_ri_warn(ri, par->loc, "%s: string primitive variable '%s' ignored",
 				      r->name, name);
@@ -332,8 +436,9 @@ static bool prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t
 		}
 		bool is_P = is_position(name);
 		if (is_P && !points) {
-			reyes_ri_err(ri, par->loc, "%s does not take \"%s\"", r->name, name);
-			return false;
+			reyes_ri_warn(ri, par->loc, "%s does not take \"%s\": ignored", r->name,
+				      name);
+			continue;
 		}
 		uint32_t per = decl_ncomp(&d);
 		uint64_t want = (uint64_t)sizes[d.cls] * per;
@@ -413,6 +518,8 @@ static bool prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t
 			vals[1] = t;
 			alen = 0;
 		}
+		if (!binds(ri, r, par, name, type, alen))
+			continue;
 		for (int j = 0; j < 2 && names[j]; j++) {
 			for (uint32_t k = 0; k < n; k++)
 				if (strcmp(vars[k].name, names[j]) == 0) {
@@ -1114,6 +1221,7 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 	bool warned = false;
 	for (size_t i = 0; i < o->prims.len; i++) {
 		const struct obj_prim *op = &o->prims.data[i];
+		instance_binds(ri, r, handle, op);
 		struct xform x = ri->gs.x;
 		if (!op->identity) {
 			for (int t = 0; t < 2; t++)

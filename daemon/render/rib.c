@@ -155,15 +155,16 @@ static const struct reqdef reqdefs[] = {
 
 /*
  * Requests of the RenderMan Interface that this renderer does not implement:
- * they get a clearer message than a misspelt name does.
+ * the handler gets them as RIB_UNSUPPORTED (ignored with a warning), not as
+ * misspelt names.
  */
 static const char *const unsupported[] = {
-	"AreaLightSource", "ArchiveRecord", "Atmosphere", "Blobby", "Bound", "ColorSamples",
-	"Curves", "Deformation", "ErrorHandler",
-	"Exterior", "Imager", "Interior", "MakeBump",
-	"NuPatch", "Perspective",
-	"Points", "Procedural", "SolidBegin", "SolidEnd",
-	"SubdivisionMesh", "TrimCurve",
+	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Atmosphere", "Blobby",
+	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Curves", "Deformation",
+	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Exterior", "Geometry", "IfBegin",
+	"IfEnd", "Imager", "Interior", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
+	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
+	"Shader", "SolidBegin", "SolidEnd", "SubdivisionMesh", "System", "TrimCurve",
 };
 
 /* ---- diagnostics ------------------------------------------------------------ */
@@ -176,12 +177,15 @@ static void vreport(FILE *diag, struct rib_loc loc, const char *kind, const char
 	if (!fmt)
 		fmt = "(no message)";
 	const char *file = loc.file ? loc.file : "<rib>";
+	/* one line at a time, whatever other threads print */
+	flockfile(diag);
 	if (loc.line)
 		fprintf(diag, "%s:%u: %s: ", file, (unsigned)loc.line, kind);
 	else
 		fprintf(diag, "%s: %s: ", file, kind);
 	vfprintf(diag, fmt, ap);
 	fputc('\n', diag);
+	funlockfile(diag);
 }
 
 void rib_error(FILE *diag, struct rib_loc loc, const char *fmt, ...)
@@ -1302,6 +1306,43 @@ static void skip_to_request(struct rib_reader *r)
 	r->skipping = false;
 }
 
+/*
+ * A request the table lacks (the current token is its name): its arguments
+ * are read as tokens up to the next request name, and it goes to the
+ * handler by name, to be warned about there; after a lexical error in them
+ * (the first one reported) it is dropped, as a known request would be.
+ */
+static void pass_unhandled(struct rib_reader *r)
+{
+	char name[sizeof(r->word)];
+	memcpy(name, r->word, sizeof(name));
+	uint32_t line = r->tok_line;
+	advance(r);
+	bool bad = false;
+	while (!r->stop) {
+		enum tok t = peek(r);
+		if (t == T_NAME || t == T_EOF)
+			break;
+		if (t == T_ERR)
+			bad = r->skipping = true;
+		advance(r);
+	}
+	r->skipping = false;
+	if (!r->fn || r->src_failed || r->stop || bad)
+		return;
+	bool unsupported = is_unsupported(name);
+	struct rib_request req = {
+		.name = name,
+		.loc = loc_at(r, line),
+		.known = unsupported ? RIB_UNSUPPORTED : RIB_UNKNOWN,
+		.near = unsupported ? NULL : suggest(name),
+	};
+	if (!r->fn(r->user, &req)) {
+		r->handler_stopped = true;
+		r->stop = true;
+	}
+}
+
 /* file := { request } */
 static void read_all(struct rib_reader *r)
 {
@@ -1320,16 +1361,7 @@ static void read_all(struct rib_reader *r)
 		}
 		const struct reqdef *def = find_request(r->word);
 		if (!def) {
-			const char *near = suggest(r->word);
-			if (is_unsupported(r->word))
-				error_at(r, r->tok_line, "unsupported request '%s'", r->word);
-			else if (near)
-				error_at(r, r->tok_line, "unknown request '%s'; did you mean '%s'?",
-					 r->word, near);
-			else
-				error_at(r, r->tok_line, "unknown request '%s'", r->word);
-			advance(r);
-			skip_to_request(r);
+			pass_unhandled(r);
 			continue;
 		}
 		if (!parse_request(r, def))

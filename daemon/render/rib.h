@@ -40,13 +40,29 @@ struct rib_param {
 	struct rib_loc loc;
 };
 
+/** Is a request one of the reader's table? */
+enum rib_known {
+	RIB_KNOWN,             /* a request of the table, its arguments checked */
+	RIB_UNSUPPORTED,       /* a request of the RenderMan Interface the table lacks */
+	RIB_UNKNOWN,           /* any other name */
+};
+
 struct rib_request {
-	const char *name;      /* canonical name from the table, e.g. "WorldBegin" */
+	/* canonical name from the table, e.g. "WorldBegin"; as written when not known */
+	const char *name;
 	struct rib_loc loc;
 	const struct rib_value *args;   /* positional arguments, checked against the table */
 	uint32_t nargs;
 	const struct rib_param *params; /* the parameter list, for requests that take one */
 	uint32_t nparams;
+	/*
+	 * RIB_UNSUPPORTED and RIB_UNKNOWN requests come by name only: their
+	 * arguments were read as tokens (lexical errors reported) and skipped,
+	 * nargs and nparams are 0. @near: for RIB_UNKNOWN, the known request
+	 * whose name is closest (a misspelling), or NULL.
+	 */
+	enum rib_known known;
+	const char *near;
 };
 
 /**
@@ -64,8 +80,11 @@ struct rib_reader_opts {
 
 /**
  * Read the RIB file at @path (gzip-compressed files are recognised by their
- * magic bytes), calling @fn for each request. Syntax errors, unknown requests
- * ("unknown request 'Foo'"), wrong argument counts or types, NaN/Inf numbers,
+ * magic bytes), calling @fn for each request. A name the table lacks (a
+ * request relight does not implement, or an unknown one) goes to @fn too, by
+ * name only (struct rib_request's known), for the handler to warn about: the
+ * reader itself has no warnings. Syntax errors, wrong argument counts or
+ * types, NaN/Inf numbers,
  * arrays over max_array and truncated files are reported as
  * "FILE:LINE: error: MESSAGE"; reading skips to the next request and goes on
  * (up to max_errors). ReadArchive is not followed here (the scene builder

@@ -256,20 +256,37 @@ static void matmul4(const float a[16], const float b[16], float out[16])
 /* ------------------------------------------------------------------------ */
 /* Diagnostics, scratch, strings                                             */
 
+/*
+ * "FILE:LINE:COL: WHAT: MESSAGE" on stderr in one write of the whole line:
+ * executors of other threads report at the same time. A warning already
+ * printed (by any executor) is counted, not printed again.
+ */
 static void report(struct sl_exec *x, const struct sl_insn *in, const char *what,
 		   const char *fmt, va_list ap)
 {
 	const struct sl_program *prog = x->prog;
+	char line[1024];
+	int n;
 	if (in) {
 		const char *file = prog_label(prog);
 		if (prog->files && in->loc.file < prog->nfiles && prog->files[in->loc.file])
 			file = prog->files[in->loc.file];
-		fprintf(stderr, "%s:%u:%u: %s: ", file, in->loc.line, in->loc.col, what);
+		n = snprintf(line, sizeof(line), "%s:%u:%u: %s: ", file, in->loc.line, in->loc.col,
+			     what);
 	} else {
-		fprintf(stderr, "%s: %s: ", prog_label(prog), what);
+		n = snprintf(line, sizeof(line), "%s: %s: ", prog_label(prog), what);
 	}
-	vfprintf(stderr, fmt, ap);
-	fputc('\n', stderr);
+	if (n < 0)
+		return;
+	size_t len = (size_t)n < sizeof(line) - 1 ? (size_t)n : sizeof(line) - 1;
+	n = vsnprintf(line + len, sizeof(line) - len, fmt, ap);
+	len = n < 0 ? len : len + (size_t)n < sizeof(line) - 1 ? len + (size_t)n : sizeof(line) - 1;
+	if (!strcmp(what, "warning") && sl_exec_warning_seen(line))
+		return;
+	line[len] = '\n';
+	flockfile(stderr);
+	fwrite(line, 1, len + 1, stderr);
+	funlockfile(stderr);
 }
 
 /* Index of @in in the program's code, or NONE when it is not one of them. */

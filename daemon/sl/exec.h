@@ -109,6 +109,12 @@ struct sl_tex_lookup {
 struct sl_exec *sl_exec_create(const struct sl_program *prog, uint32_t maxpoints);
 void sl_exec_destroy(struct sl_exec *x);
 
+/**
+ * The shading warnings of the process so far: @printed, and @repeats not
+ * printed because the same one (text and place) was, by any executor.
+ */
+void sl_exec_warning_counts(uint64_t *printed, uint64_t *repeats);
+
 const struct sl_program *sl_exec_program(const struct sl_exec *x);
 uint32_t sl_exec_stride(const struct sl_exec *x);
 

@@ -109,9 +109,18 @@ float *sl_exec_scratch(struct sl_exec *x, size_t n);
 /** A string that lives until the next run. */
 const char *sl_exec_strdup(struct sl_exec *x, const char *s);
 
-/** Print "FILE:LINE:COL: warning: MESSAGE" once per instruction. */
+/**
+ * Print "FILE:LINE:COL: warning: MESSAGE" once per instruction, and once a
+ * process for all the executors of every thread (counted: sl_exec_warning_counts).
+ */
 void sl_exec_warn_once(struct sl_exec *x, const struct sl_insn *in, const char *fmt, ...)
 	__attribute__((format(printf, 3, 4)));
+
+/**
+ * Has the shading warning @line ("FILE:LINE:COL: warning: MESSAGE") been
+ * printed already in this process? Counts it either way (exec_warnings.c).
+ */
+bool sl_exec_warning_seen(const char *line);
 
 /** Print "FILE:LINE:COL: error: MESSAGE" and stop the run (x->failed). */
 void sl_exec_fail(struct sl_exec *x, const struct sl_insn *in, const char *fmt, ...)

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # `relight render`: its help, its options, a small scene end to end, and bad
-# scenes ending in `FILE:LINE: error:` with exit status 1 (never a crash).
+# scenes ending in `FILE:LINE: error:` with exit status 1 (never a crash), and
+# what relight ignores ending in `FILE:LINE: warning:` with exit status 0.
 source "$(dirname "$0")/lib.sh"
 
 run "help" "$relight" render --help
@@ -98,20 +99,31 @@ check_bad() {
 	expect_stderr "bad.rib:$2: error: .*$3"
 }
 
-check_bad "unknown request" 2 "unknown request 'Sphree'" \
-	$'WorldBegin\nSphree 1 -1 1 360\nWorldEnd\n'
 check_bad "argument count" 2 "Sphere" \
 	$'WorldBegin\nSphere 1 -1\nWorldEnd\n'
 check_bad "unbalanced block" 3 "AttributeEnd" \
 	$'WorldBegin\nTransformBegin\nAttributeEnd\nWorldEnd\n'
 check_bad "missing shader" 2 "cannot find shader 'nosuchshader'" \
 	$'WorldBegin\nSurface "nosuchshader"\nSphere 1 -1 1 360\nWorldEnd\n'
-check_bad "unknown shader parameter" 2 "no parameter 'Kdd'" \
-	$'WorldBegin\nSurface "plastic" "Kdd" 1\nSphere 1 -1 1 360\nWorldEnd\n'
 check_bad "NaN" 2 "" \
 	$'WorldBegin\nSphere nan -1 1 360\nWorldEnd\n'
 check_bad "truncated" 2 "" \
 	$'WorldBegin\nPolygon "P" [0 0 1  1 0 1\n'
+
+# check_warned DESCRIPTION LINE MESSAGE RIB-TEXT: exit 0, FILE:LINE: warning: MESSAGE
+# (what relight ignores; tests/cli/error_policy.sh has the policy).
+check_warned() {
+	printf '%s' "$4" >"$work/warned.rib"
+	run "$1" bash -c "cd '$work' && '$relight' render -q -o warned.exr warned.rib"
+	expect_no_crash
+	expect_status 0
+	expect_stderr "warned.rib:$2: warning: .*$3"
+}
+
+check_warned "unknown request" 2 "unknown request 'Sphree' ignored; did you mean 'Sphere'" \
+	$'WorldBegin\nSphree 1 -1 1 360\nWorldEnd\n'
+check_warned "unknown shader parameter" 2 "no parameter 'Kdd'" \
+	$'WorldBegin\nSurface "plastic" "Kdd" 1\nSphere 1 -1 1 360\nWorldEnd\n'
 
 # Garbage and a huge array: clean errors.
 python3 -c '

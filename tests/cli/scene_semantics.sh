@@ -98,7 +98,7 @@ check_pipeline() { # WHAT SCENE
 	expect_status 0
 	expect_no_crash
 	checks=$((checks + 1))
-	grep -q "error" "$work/stderr" && fail "render reports an error"
+	grep -q "error:" "$work/stderr" && fail "render reports an error"
 	run "$1: bake" bash -c "cd '$work' && '$relight' bake -q -o $1.shot.exr $2"
 	expect_status 0
 	expect_no_crash

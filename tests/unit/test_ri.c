@@ -6,6 +6,7 @@
 #include "ir.h"
 #include "mathlib.h"
 #include "ri.h"
+#include "strbuf.h"
 #include "test.h"
 
 #include <stdarg.h>
@@ -571,11 +572,11 @@ static void test_shader_params(void)
 	CHECK(frames == 1);
 	CHECK_NO_DIAG();
 
-	/* A declared type must agree with the shader's. */
-	CHECK(!run("WorldBegin\nSurface \"plastic\" \"color Kd\" [1 1 1]\nWorldEnd\n", NULL));
-	CHECK_DIAG(test_fmt("%s:2: error: parameter 'Kd' of shader 'plastic' is float, but it is "
-		       "given as color", rib_path));
-	CHECK(frames == 0);
+	/* A declared type must agree with the shader's, or the value is ignored. */
+	CHECK(run("WorldBegin\nSurface \"plastic\" \"color Kd\" [1 1 1]\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: warning: parameter 'Kd' of shader 'plastic' is float, but it is "
+		       "given as color: ignored", rib_path));
+	CHECK(frames == 1);
 }
 
 /* ---- primitives ---- */
@@ -698,6 +699,15 @@ static void check_primvars(const struct reyes_scene *sc)
 	"PointsPolygons [4 4] [0 1 4 3 1 2 5 4]\n" \
 	"  \"P\" [0 0 0 1 0 0 2 0 0 0 1 0 1 1 0 2 1 0]\n"
 
+/* TWO_QUADS with an ignored primitive variable: P alone. */
+static void check_two_quads(const struct reyes_scene *sc)
+{
+	CHECK(sc->nprims == 1);
+	for (uint32_t i = 0; i < sc->nprims; i++)
+		for (uint32_t k = 0; k < sc->prims[i].nvars; k++)
+			CHECK(strcmp(sc->prims[i].vars[k].name, "mystery") != 0);
+}
+
 static void test_primvars(void)
 {
 	CHECK(run("Declare \"bar\" \"facevarying float\"\n"
@@ -721,10 +731,10 @@ static void test_primvars(void)
 	CHECK(!run("WorldBegin\n" TWO_QUADS "  \"Cs\" [1 0 0]\nWorldEnd\n", NULL));
 	CHECK_DIAG(test_fmt("%s:4: error: PointsPolygons: primitive variable \"Cs\" (varying color) "
 		       "needs 18 values, got 3", rib_path));
-	CHECK(!run("WorldBegin\n" TWO_QUADS "  \"mystery\" [1]\nWorldEnd\n", NULL));
-	CHECK_DIAG(test_fmt("%s:4: error: PointsPolygons: unknown primitive variable 'mystery'",
-		       rib_path));
-	CHECK(frames == 0);
+	CHECK(run("WorldBegin\n" TWO_QUADS "  \"mystery\" [1]\nWorldEnd\n", check_two_quads));
+	CHECK_DIAG(test_fmt("%s:4: warning: PointsPolygons: primitive variable 'mystery' has no type "
+		       "(declare it with Declare or an inline type): ignored", rib_path));
+	CHECK(frames == 1);
 }
 
 static void check_patches(const struct reyes_scene *sc)
@@ -1136,14 +1146,131 @@ static void test_archives(void)
 	CHECK(frames == 0);
 }
 
+/* ---- the error policy ---- */
+
+static uint32_t last_nprims;
+
+static void count_prims(const struct reyes_scene *sc)
+{
+	last_nprims = sc->nprims;
+}
+
+/* The sphere's primitive variables bind no "Kd" to the shader. */
+static void check_no_kd(const struct reyes_scene *sc)
+{
+	CHECK(sc->nprims == 1);
+	for (uint32_t i = 0; i < sc->nprims; i++)
+		for (uint32_t k = 0; k < sc->prims[i].nvars; k++)
+			CHECK(strcmp(sc->prims[i].vars[k].name, "Kd") != 0);
+}
+
+/*
+ * Warnings (what is ignored: the frame renders), errors that drop one
+ * primitive (the rest renders) and errors that hold back the frame; each
+ * message once per place; --strict.
+ */
+static void test_error_policy(void)
+{
+	struct reyes_ri_counts c;
+	struct reyes_ri_opts o = {.counts = &c};
+	int n;
+
+	/* An unsupported and an unknown request: warnings, the frame renders. */
+	CHECK(run_opts("WorldBegin\nAtmosphere \"fog\"\nSphre 1 -1 1 360\nSphere 1 -1 1 360\n"
+		       "WorldEnd\n", count_prims, &o, &n));
+	CHECK_DIAG(test_fmt("%s:2: warning: Atmosphere is not supported: ignored\n"
+			    "%s:3: warning: unknown request 'Sphre' ignored; did you mean "
+			    "'Sphere'?\n", rib_path, rib_path));
+	CHECK(frames == 1 && last_nprims == 1);
+	CHECK(n == 0 && c.errors == 0 && c.warnings == 2 && c.repeats == 0 && c.dropped == 0);
+
+	/* A malformed primitive among good ones: dropped with an error, the rest renders. */
+	CHECK(!run_opts("WorldBegin\nPolygon \"P\" [0 0 0 1 0 0 1 1 0]\n"
+			"Polygon \"P\" [0 0 0 1 0 0 1 1]\nSphere 1 -1 1 360\nWorldEnd\n",
+			count_prims, &o, &n));
+	CHECK_DIAG(test_fmt("%s:3: error: Polygon: \"P\" has 8 values, not a multiple of 3\n",
+			    rib_path));
+	CHECK(frames == 1 && last_nprims == 2);
+	CHECK(n == 1 && c.errors == 1 && c.fatal == 0 && c.dropped == 1);
+
+	/* Dropped primitives do not count towards the limit of errors that ends the read. */
+	struct rl_strbuf many = {0};
+	rl_strbuf_printf(&many, "WorldBegin\n");
+	for (int i = 0; i < 30; i++)
+		rl_strbuf_printf(&many, "Polygon \"P\" [0 0 0 1 0 0 1 %d]\n", i);
+	rl_strbuf_printf(&many, "Sphere 1 -1 1 360\nWorldEnd\n");
+	CHECK(!run_opts(rl_strbuf_str(&many), count_prims, &o, &n));
+	CHECK(frames == 1 && last_nprims == 1 && c.dropped == 30 && c.errors == 30 && c.fatal == 0);
+	CHECK(c.frames == 1);
+	rl_strbuf_finish(&many);
+
+	/* A deforming primitive goes with its malformed sample. */
+	CHECK(!run_opts("WorldBegin\nMotionBegin [0 1]\nPolygon \"P\" [0 0 0 1 0 0 1 1]\n"
+			"Polygon \"P\" [0 0 0 1 0 0 1 1 0]\nMotionEnd\nSphere 1 -1 1 360\nWorldEnd\n",
+			count_prims, &o, &n));
+	CHECK_STR(diag, test_fmt("%s:3: error: Polygon: \"P\" has 8 values, not a multiple of 3\n",
+				 rib_path));
+	CHECK(frames == 1 && last_nprims == 1 && c.fatal == 0 && c.dropped == 1);
+
+	/* An error outside a primitive still holds back its frame. */
+	CHECK(!run_opts("WorldBegin\nSurface \"nosuch\"\nSphere 1 -1 1 360\nWorldEnd\n", NULL, &o,
+			&n));
+	CHECK(frames == 0 && c.fatal == 1 && c.dropped == 0);
+	/* So do the requests whose absence would change the meaning of the rest. */
+	CHECK(!run_opts("WorldBegin\nIfBegin \"true\"\nSphere 1 -1 1 360\nIfEnd\nWorldEnd\n", NULL,
+			&o, &n));
+	CHECK_DIAG(test_fmt("%s:2: error: IfBegin is not supported, and the frame would be wrong "
+			    "without it\n", rib_path));
+	CHECK(frames == 0 && c.fatal == 2);
+
+	/* One line per message and place: an archive read 50 times reports once. */
+	put("arch/fog.rib", "Atmosphere \"fog\"\nSurface \"plastic\" \"Kdd\" 1\n");
+	struct rl_strbuf b = {0};
+	rl_strbuf_printf(&b, "WorldBegin\n");
+	for (int i = 0; i < 50; i++)
+		rl_strbuf_printf(&b, "ReadArchive \"%s/arch/fog.rib\"\n", dir);
+	rl_strbuf_printf(&b, "Sphere 1 -1 1 360\nWorldEnd\n");
+	CHECK(run_opts(rl_strbuf_str(&b), count_prims, &o, &n));
+	CHECK_STR(diag, test_fmt("%s/arch/fog.rib:1: warning: Atmosphere is not supported: ignored\n"
+			    "%s/arch/fog.rib:2: warning: shader 'plastic' has no parameter 'Kdd': "
+			    "ignored\n", dir, dir));
+	CHECK(frames == 1 && c.warnings == 2 && c.repeats == 98 && c.errors == 0);
+
+	/* --strict: every warning an error, the frame held back. */
+	o.strict = true;
+	CHECK(!run_opts(rl_strbuf_str(&b), NULL, &o, &n));
+	CHECK_DIAG(test_fmt("%s/arch/fog.rib:1: error: Atmosphere is not supported: ignored (an "
+			    "error under --strict)\n", dir));
+	CHECK(frames == 0 && c.warnings == 0 && c.errors == 2 && c.fatal == 2);
+	o.strict = false;
+	rl_strbuf_finish(&b);
+
+	/* A primitive variable that does not fit the shader's parameter of its name. */
+	CHECK(run_opts("WorldBegin\nSurface \"plastic\"\n"
+		       "Sphere 1 -1 1 360 \"uniform color Kd\" [1 0 0]\nWorldEnd\n", check_no_kd,
+		       &o, &n));
+	CHECK_DIAG(test_fmt("%s:3: warning: Sphere: primitive variable 'Kd' (color) does not fit "
+			    "parameter 'Kd' of shader 'plastic' (float): ignored\n", rib_path));
+	CHECK(frames == 1 && c.warnings == 1);
+	/* In an object, against the shaders its instances give it, at each ObjectInstance. */
+	CHECK(run_opts("WorldBegin\nObjectBegin \"ball\"\n"
+		       "Sphere 1 -1 1 360 \"uniform color Kd\" [1 0 0]\nObjectEnd\n"
+		       "Surface \"plastic\"\nObjectInstance \"ball\"\nWorldEnd\n", NULL, &o, &n));
+	CHECK_STR(diag, test_fmt("%s:6: warning: ObjectInstance ball: primitive variable 'Kd' "
+				 "(color) does not fit parameter 'Kd' of shader 'plastic' (float): "
+				 "ignored\n", rib_path));
+	CHECK(frames == 1 && c.warnings == 1);
+}
+
 /* ---- errors ---- */
 
 static void test_errors(void)
 {
 	const char *sh = RELIGHT_SOURCE_SHADER_DIR;
-	CHECK(!run("WorldBegin\nSurface \"plastic\" \"Kdd\" 1\nWorldEnd\n", NULL));
-	CHECK_DIAG(test_fmt("%s:2: error: shader 'plastic' has no parameter 'Kdd'\n", rib_path));
-	CHECK(frames == 0);
+	CHECK(run("WorldBegin\nSurface \"plastic\" \"Kdd\" 1\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: warning: shader 'plastic' has no parameter 'Kdd': ignored\n",
+		       rib_path));
+	CHECK(frames == 1);
 
 	CHECK(!run("WorldBegin\nSurface \"plastic\" \"Kd\" [1 2]\nWorldEnd\n", NULL));
 	CHECK_DIAG(test_fmt("%s:2: error: parameter 'Kd' of shader 'plastic' needs 1 value, got 2\n",
@@ -1203,9 +1330,9 @@ static void test_errors(void)
 	CHECK(!run("MakeShadow \"missing.z\" \"out.shd\"\n", NULL));
 	CHECK_DIAG(test_fmt("%s:1: error: MakeShadow 'missing.z' -> 'out.shd' failed\n", rib_path));
 
-	CHECK(!run("WorldBegin\nSurface \"plastic\" \"Kd\" 1 \"Kd\" 2\nWorldEnd\n", NULL));
-	CHECK_DIAG(test_fmt("%s:2: error: parameter 'Kd' of shader 'plastic' is given twice\n",
-		       rib_path));
+	CHECK(run("WorldBegin\nSurface \"plastic\" \"Kd\" 1 \"Kd\" 2\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: warning: parameter 'Kd' of shader 'plastic' is given twice: the "
+		       "first value is kept\n", rib_path));
 
 	CHECK(!run("WorldBegin\nMotionBegin [0 1]\nTranslate 1 0 0\nMotionEnd\nWorldEnd\n", NULL));
 	CHECK_DIAG(test_fmt("%s:2: error: MotionBegin has 2 times but 1 sample\n", rib_path));
@@ -1271,6 +1398,7 @@ int main(void)
 	RUN(test_height_fields);
 	RUN(test_archives);
 	RUN(test_errors);
+	RUN(test_error_policy);
 	RUN(test_frame_refused);
 	for (int i = 0; i < nwritten; i++)
 		unlink(written[i]);
