@@ -457,8 +457,8 @@ struct error_case {
 };
 
 static const struct error_case error_cases[] = {
-	{"Foo 1 2 \"x\nWorldBegin\n",
-	 "t.rib:1: error: unterminated string\n", "WorldBegin@2\n"},
+	{"Foo 1 2 \"x\\qy\"\nWorldBegin\n",
+	 "t.rib:1: error: unknown escape '\\q' in string\n", "WorldBegin@2\n"},
 	{"Sphere 1 2\nWorldEnd\n",
 	 "t.rib:1: error: Sphere expects 4 numbers before its parameter list, got 2\n",
 	 "WorldEnd@2\n"},
@@ -987,7 +987,7 @@ static void test_garbage(void)
 	CHECK(junk != NULL);
 	if (junk) {
 		for (size_t i = 0; i < big; i++)
-			junk[i] = "x1 ]\"\n"[i % 6];
+			junk[i] = "x1 ]\001\n"[i % 6];
 		int nerr = -1;
 		FILE *devnull = fopen("/dev/null", "w");
 		struct rib_reader_opts jo = {.diag = devnull, .max_errors = 5};
