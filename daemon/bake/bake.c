@@ -457,6 +457,7 @@ static char *metadata(const struct bake *b, const struct bake_stats *st, const c
 	cJSON_AddItemToArray(px, cJSON_CreateNumber(so->ysamples ? so->ysamples : 1));
 	cJSON_AddItemToObject(root, "world_to_camera", matrix_json(so->world_to_camera));
 	cJSON_AddBoolToObject(root, "light_derivatives", b->light_derivatives);
+	cJSON_AddStringToObject(root, "specular_model", sl_specular_model_name(so->specular_model));
 
 	cJSON *lights = cJSON_AddArrayToObject(root, "lights");
 	for (uint32_t i = 0; i < sc->nlights; i++) {

@@ -873,6 +873,7 @@ static void setup_host(struct tctx *t, struct sl_exec **lights, int nlights,
 	t->lh.host.textureinfo = host_textureinfo;
 	t->lh.host.option = host_option;
 	t->lh.host.rendererinfo = host_rendererinfo;
+	t->lh.host.specular_model = t->r->scene->opts.specular_model;
 }
 
 static struct sl_exec *light_exec(struct tctx *t, uint32_t li)

@@ -659,11 +659,36 @@ static const char *expand_path(struct ri *ri, const char *spec, const char *prev
 	return out;
 }
 
+/* Option "shading" "string specularmodel" ["prman" | "rispec"] */
+static void shading_option(struct ri *ri, const struct rib_request *r)
+{
+	for (uint32_t i = 0; i < r->nparams; i++) {
+		const struct rib_param *p = &r->params[i];
+		struct decl d;
+		bool has;
+		const char *pname;
+		if (!reyes_ri_param_token(ri, p, r->name, &d, &has, &pname))
+			return;
+		if (strcmp(pname, "specularmodel") != 0) {
+			reyes_ri_warn(ri, p->loc, "unknown option 'shading' '%s' ignored", pname);
+			continue;
+		}
+		if (reyes_ri_is_numbers(&p->value) || p->value.n != 1 ||
+		    !sl_specular_model_parse(p->value.strs[0], &ri->opt.o.specular_model))
+			reyes_ri_err(ri, p->loc,
+				     "Option \"shading\" \"specularmodel\" takes \"prman\" or \"rispec\"");
+	}
+}
+
 static void req_option(struct ri *ri, const struct rib_request *r)
 {
 	const char *name;
 	if (!option_ok(ri, r) || !reyes_ri_str_arg(ri, r, 0, &name))
 		return;
+	if (strcmp(name, "shading") == 0) {
+		shading_option(ri, r);
+		return;
+	}
 	if (strcmp(name, "searchpath") != 0) {
 		reyes_ri_warn(ri, r->loc, "unknown option '%s' ignored", name);
 		return;

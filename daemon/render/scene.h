@@ -63,6 +63,8 @@ struct reyes_options {
 	const char *texture_path;
 	const char *archive_path;
 	const char *include_path;       /* where shaders' #include look after their own folder */
+	/* Option "shading" "specularmodel": specular()'s highlight (default 0, PRMan's) */
+	enum sl_specular_model specular_model;
 	float world_to_camera[16];      /* the transform at WorldBegin */
 	float camera_to_screen[16];     /* projection (from fov or orthographic) */
 };
