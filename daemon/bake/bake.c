@@ -310,9 +310,15 @@ static uint32_t hook_grid(void *user, const struct reyes_shader *surf,
 	bool fits = g && id0 + n < UINT32_MAX;
 	if (fits)
 		b->next_id += n;
-	else if (g && !b->failed)
-		fprintf(b->diag, "relight: error: more than %u shading samples: the scene is too "
-			"large to bake in one shot (use a coarser ShadingRate)\n", UINT32_MAX - 1);
+	else if (g && !b->failed) {
+		struct rib_loc at = prim->attrs->shading_rate_loc;
+		if (at.file)
+			fprintf(b->diag, "%s:%u: error: ", at.file, at.line);
+		else
+			fputs("relight: error: ", b->diag);
+		fprintf(b->diag, "more than %u shading samples: the scene is too large to bake in "
+			"one shot (use a coarser ShadingRate)\n", UINT32_MAX - 1);
+	}
 	uint32_t lightset = fits ? lightset_of(b, prim->attrs) : 0;
 	uint32_t paramset = fits ? paramset_of(g, surf) : 0;
 	pthread_mutex_unlock(&b->lock);
@@ -1212,6 +1218,7 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 	};
 	struct reyes_render_opts ro = {
 		.threads = opts->threads, .progress = opts->progress, .diag = b.diag, .bake = &hooks,
+		.memory_limit = opts->memory_limit,
 		.progress_fn = opts->progress_fn ? render_progress : NULL, .progress_user = &b,
 	};
 	report(&b, 0.0, "rendering");
@@ -1309,7 +1316,7 @@ static bool rib_frame(void *user, const struct reyes_scene *scene)
 					: j->last;
 		}
 		struct reyes_render_opts ro = {
-			.threads = j->o->threads, .diag = j->diag,
+			.threads = j->o->threads, .diag = j->diag, .memory_limit = j->o->memory_limit,
 			.progress_fn = report_it ? rib_pass_progress : NULL, .progress_user = j,
 			.shader_cache = j->shaders,
 		};

@@ -278,6 +278,7 @@ static void req_format(struct ri *ri, const struct rib_request *r)
 	}
 	ri->opt.o.xres = (uint32_t)x;
 	ri->opt.o.yres = (uint32_t)y;
+	ri->opt.o.format_loc = reyes_ri_keep_loc(ri, r->loc);
 	/* A negative aspect ratio keeps the current one. */
 	if (a > 0)
 		ri->opt.o.pixel_aspect = (float)a;
@@ -321,6 +322,7 @@ static void req_crop_window(struct ri *ri, const struct rib_request *r)
 		return;
 	}
 	memcpy(ri->opt.o.crop, c, sizeof(c));
+	ri->opt.o.crop_loc = reyes_ri_keep_loc(ri, r->loc);
 }
 
 bool reyes_ri_is_identity(const float m[16])
@@ -418,6 +420,7 @@ static void req_pixel_samples(struct ri *ri, const struct rib_request *r)
 	}
 	ri->opt.o.xsamples = (uint32_t)s[0];
 	ri->opt.o.ysamples = (uint32_t)s[1];
+	ri->opt.o.samples_loc = reyes_ri_keep_loc(ri, r->loc);
 }
 
 static void req_pixel_filter(struct ri *ri, const struct rib_request *r)
@@ -794,6 +797,7 @@ const struct reyes_attrs *reyes_ri_make_bundle(struct ri *ri, const struct xform
 	b->sides = a->sides;
 	b->flip_normals = a->inside;
 	b->shading_rate = a->shading_rate;
+	b->shading_rate_loc = a->shading_rate_loc;
 	b->smooth = a->smooth;
 	b->identifier = a->identifier;
 	b->displacement_bound = a->dbound;
@@ -872,6 +876,7 @@ static void req_shading_rate(struct ri *ri, const struct rib_request *r)
 	if (!(s > 0))
 		FAIL(ri, r->loc, "ShadingRate must be positive, got %g", s);
 	ri->gs.a.shading_rate = s;
+	ri->gs.a.shading_rate_loc = reyes_ri_keep_loc(ri, r->loc);
 	ri->gs.a.objset |= OBJ_SHADING_RATE;
 	attrs_changed(ri);
 }
