@@ -268,6 +268,8 @@ struct render {
 	uint64_t limit;
 	double fixed_bytes, job_bytes, total_points;
 	double *row_points;              /* nby: points alive while the row is rendered */
+	double row_most;                 /* the largest of them, in row row_fullest */
+	uint32_t row_fullest;
 	bool predicted;                  /* inside a piece already counted */
 };
 
@@ -522,15 +524,9 @@ static bool piece_extent_unseen(const struct render *r, const struct reyes_patch
 static void split_piece(struct render *r, const struct reyes_patch *pa);
 
 /* What the frame needs beyond its fixed part: the fullest bucket row's points and the jobs. */
-static double working_bytes(const struct render *r, uint32_t *row)
+static double working_bytes(const struct render *r)
 {
-	double most = 0;
-	for (uint32_t k = 0; k < r->nby; k++)
-		if (r->row_points[k] > most) {
-			most = r->row_points[k];
-			*row = k;
-		}
-	double b = most * point_bytes(r) + r->job_bytes;
+	double b = r->row_most * point_bytes(r) + r->job_bytes;
 	if (r->o->bake)
 		b += r->total_points * BAKE_POINT_BYTES;
 	return b;
@@ -571,12 +567,16 @@ static bool predict_piece(struct render *r, const struct reyes_patch *pa, float 
 		row1 = bottom < r->nby ? (uint32_t)bottom : r->nby - 1;
 	}
 	double alive = pts * fmin(1.0, 2.0 / (row1 - row0 + 1));
-	for (uint32_t k = row0; k <= row1; k++)
+	for (uint32_t k = row0; k <= row1; k++) {
 		r->row_points[k] += alive;
+		if (r->row_points[k] > r->row_most) {
+			r->row_most = r->row_points[k];
+			r->row_fullest = k;
+		}
+	}
 	r->total_points += pts;
 	r->job_bytes += njobs * sizeof(struct job);
-	uint32_t row = 0;
-	double need = r->fixed_bytes + working_bytes(r, &row);
+	double need = r->fixed_bytes + working_bytes(r);
 	if (need <= (double)r->limit)
 		return true;
 	const struct reyes_attrs *a = pa->prim->attrs;
@@ -586,7 +586,7 @@ static bool predict_piece(struct render *r, const struct reyes_patch *pa, float 
 		  "frame, the fullest bucket row %u), over the memory limit of %s (--memory-limit): "
 		  "raise the ShadingRate%s", (double)(r->rate > 0 ? r->rate : rate),
 		  a->shading_rate_loc.file ? "" : " (the default)", r->total_points,
-		  reyes_mem_format(est, sizeof(est), (uint64_t)fmin(need, 1.8e19)), row,
+		  reyes_mem_format(est, sizeof(est), (uint64_t)fmin(need, 1.8e19)), r->row_fullest,
 		  reyes_mem_format(lim, sizeof(lim), r->limit),
 		  r->o->bake ? ", or bake fewer pixels" : "");
 	atomic_store(&r->failed, true);
