@@ -402,7 +402,8 @@ static bool plan_outputs(struct render_job *j)
 					o->name, o->mode);
 				ok = false;
 			}
-			if (!cmd_check_output(o->name, o->from_output ? "relight render: --output"
+			if (o->kind != OUT_SKIP &&
+			    !cmd_check_output(o->name, o->from_output ? "relight render: --output"
 								      : o->where))
 				ok = false;
 			o->key = file_key(o->name);

@@ -109,6 +109,11 @@ refused "cannot write 'folder.exr': it is a folder" \
 sed 's|Display "slow.exr"|Display "nowhere/lost.exr"|' slow.rib >lost.rib
 refused "^lost\.rib:5: error: cannot write 'nowhere/lost.exr': the folder 'nowhere' does not exist" \
 	"Display into a missing folder" "$relight" render -t 1 lost.rib
+# a framebuffer display is skipped (a warning), whatever its name
+sed 's|Display "small.exr" "file"|Display "nowhere/fb" "framebuffer"|' small.rib >fb.rib
+run "a skipped framebuffer display is not an output" "$relight" render -q fb.rib
+expect_status 0
+expect_stderr "framebuffer.*skipped"
 refused "^relight bake: error: cannot write 'missing/x.shot.exr': the folder 'missing' does not exist" \
 	"bake -o into a missing folder" "$relight" bake -t 1 -o missing/x.shot.exr slow.rib
 
