@@ -310,9 +310,15 @@ static uint32_t hook_grid(void *user, const struct reyes_shader *surf,
 	bool fits = g && id0 + n < UINT32_MAX;
 	if (fits)
 		b->next_id += n;
-	else if (g && !b->failed)
-		fprintf(b->diag, "relight: error: more than %u shading samples: the scene is too "
-			"large to bake in one shot (use a coarser ShadingRate)\n", UINT32_MAX - 1);
+	else if (g && !b->failed) {
+		struct rib_loc at = prim->attrs->shading_rate_loc;
+		if (at.file)
+			fprintf(b->diag, "%s:%u: error: ", at.file, at.line);
+		else
+			fputs("relight: error: ", b->diag);
+		fprintf(b->diag, "more than %u shading samples: the scene is too large to bake in "
+			"one shot (use a coarser ShadingRate)\n", UINT32_MAX - 1);
+	}
 	uint32_t lightset = fits ? lightset_of(b, prim->attrs) : 0;
 	uint32_t paramset = fits ? paramset_of(g, surf) : 0;
 	pthread_mutex_unlock(&b->lock);
@@ -457,6 +463,7 @@ static char *metadata(const struct bake *b, const struct bake_stats *st, const c
 	cJSON_AddItemToArray(px, cJSON_CreateNumber(so->ysamples ? so->ysamples : 1));
 	cJSON_AddItemToObject(root, "world_to_camera", matrix_json(so->world_to_camera));
 	cJSON_AddBoolToObject(root, "light_derivatives", b->light_derivatives);
+	cJSON_AddStringToObject(root, "specular_model", sl_specular_model_name(so->specular_model));
 
 	cJSON *lights = cJSON_AddArrayToObject(root, "lights");
 	for (uint32_t i = 0; i < sc->nlights; i++) {
@@ -1211,6 +1218,7 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 	};
 	struct reyes_render_opts ro = {
 		.threads = opts->threads, .progress = opts->progress, .diag = b.diag, .bake = &hooks,
+		.memory_limit = opts->memory_limit,
 		.progress_fn = opts->progress_fn ? render_progress : NULL, .progress_user = &b,
 	};
 	report(&b, 0.0, "rendering");
@@ -1308,7 +1316,7 @@ static bool rib_frame(void *user, const struct reyes_scene *scene)
 					: j->last;
 		}
 		struct reyes_render_opts ro = {
-			.threads = j->o->threads, .diag = j->diag,
+			.threads = j->o->threads, .diag = j->diag, .memory_limit = j->o->memory_limit,
 			.progress_fn = report_it ? rib_pass_progress : NULL, .progress_user = j,
 			.shader_cache = j->shaders,
 		};

@@ -54,6 +54,8 @@ struct bake_opts {
 	 * BAKE_DEFAULT_SHADOW_RATE). */
 	float shadow_rate;
 	bool full_float;           /* store no channel as half */
+	/* Bytes a frame may take (reyes_render_opts.memory_limit; 0: the default). */
+	uint64_t memory_limit;
 	bake_progress_fn progress_fn;  /* NULL: none (independent of @progress) */
 	void *progress_user;
 	/* bake_rib_file's shader search path, colon-separated (NULL:

@@ -309,6 +309,7 @@ static bool shade_surface(struct resolver *r, const cJSON *s, const struct span 
 				r->shaded += n;
 				struct sl_lighthost lh;
 				sl_lighthost_init(&lh, lx, nl);
+				lh.host.specular_model = spec->slice.specular_model;
 				lh.light_shader_mats = (const float (*)[16])lm;
 				reyes_tex_serve(&lh, r->tex);
 				static const char *const space_names[] = { "world" };

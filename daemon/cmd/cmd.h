@@ -27,6 +27,14 @@ int cmd_usage_error(const char *cmd, const char *fmt, ...) __attribute__((format
 /** A decimal number from 0 to @max (no sign, nothing after it). */
 bool cmd_parse_uint(const char *s, uint32_t max, uint32_t *out);
 
+/**
+ * Can @path be written as an output file? Its folder must exist and be
+ * writable and @path must not be a folder, nor an existing file that cannot
+ * be written. Checked before rendering. False with "@who: error: ..." on
+ * stderr.
+ */
+bool cmd_check_output(const char *path, const char *who);
+
 /** A finite decimal number in [@min, @max] (nothing after it). */
 bool cmd_parse_double(const char *s, double min, double max, double *out);
 

@@ -5,6 +5,7 @@
 #include "cmd.h"
 #include "exec.h"
 #include "bake.h"
+#include "memlimit.h"
 #include "config.h"
 
 #include <errno.h>
@@ -46,6 +47,10 @@ static void usage(FILE *out)
 		"                           where it holds the values: colours, normals and\n"
 		"                           vectors in half's range, exact halves)\n"
 		"  -t, --threads N          Render with N threads (default: all cores)\n"
+		"  --memory-limit SIZE      Refuse a frame estimated to need more than SIZE\n"
+		"                           bytes (8G, 512M, ...; default: 3/4 of the memory,\n"
+		"                           physical or the cgroup's), naming the Format,\n"
+		"                           PixelSamples or ShadingRate to change\n"
 		"  -I, --include DIR        Look in DIR for shaders' #include files, after the\n"
 		"                           shader's own folder (repeatable, in order; the\n"
 		"                           scene's Option \"searchpath\" \"include\" replaces\n"
@@ -127,6 +132,7 @@ int cmd_bake(int argc, char **argv)
 		{ "dynamic-surface", required_argument, NULL, 'd' },
 		{ "compress", required_argument, NULL, 'c' },
 		{ "threads", required_argument, NULL, 't' },
+		{ "memory-limit", required_argument, NULL, 'm' },
 		{ "tile-budget", required_argument, NULL, 'b' },
 		{ "shadow-rate", required_argument, NULL, 'r' },
 		{ "full-float", no_argument, NULL, 'f' },
@@ -209,6 +215,13 @@ int cmd_bake(int argc, char **argv)
 		case 'f':
 			job.bo.full_float = true;
 			break;
+		case 'm':
+			if (!reyes_mem_parse_size(optarg, &job.bo.memory_limit)) {
+				free(dyn);
+				return usage_error("--memory-limit needs a size such as 8G or 512M, "
+						   "not '%s'", optarg);
+			}
+			break;
 		case 'q':
 			job.quiet = true;
 			break;
@@ -238,6 +251,11 @@ int cmd_bake(int argc, char **argv)
 	}
 	if (!job.output)
 		job.output = out_alloc = default_output(path);
+	if (job.output && !cmd_check_output(job.output, "relight bake")) {
+		free(dyn);
+		free(out_alloc);
+		return CMD_FAILED;
+	}
 	job.bo.progress = !job.quiet && isatty(2);
 	job.bo.diag = stderr;
 

@@ -10,6 +10,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 int cmd_usage_error(const char *cmd, const char *fmt, ...)
 {
@@ -32,6 +34,39 @@ bool cmd_parse_uint(const char *s, uint32_t max, uint32_t *out)
 		return false;
 	*out = (uint32_t)v;
 	return true;
+}
+
+bool cmd_check_output(const char *path, const char *who)
+{
+	struct stat st;
+	if (!*path || path[strlen(path) - 1] == '/' || (stat(path, &st) == 0 && S_ISDIR(st.st_mode))) {
+		fprintf(stderr, "%s: error: cannot write '%s': it is a folder, not a file\n", who,
+			path);
+		return false;
+	}
+	const char *slash = strrchr(path, '/');
+	char *dir = slash ? strndup(path, (size_t)(slash - path) + (slash == path)) : strdup(".");
+	if (!dir) {
+		fprintf(stderr, "%s: error: out of memory\n", who);
+		return false;
+	}
+	bool ok = false;
+	if (stat(dir, &st) != 0)
+		fprintf(stderr, "%s: error: cannot write '%s': the folder '%s' does not exist\n",
+			who, path, dir);
+	else if (!S_ISDIR(st.st_mode))
+		fprintf(stderr, "%s: error: cannot write '%s': '%s' is not a folder\n", who, path,
+			dir);
+	else if (access(dir, W_OK | X_OK) != 0)
+		fprintf(stderr, "%s: error: cannot write '%s': the folder '%s' is not writable\n",
+			who, path, dir);
+	else if (access(path, F_OK) == 0 && access(path, W_OK) != 0)
+		fprintf(stderr, "%s: error: cannot write '%s': the file is not writable\n", who,
+			path);
+	else
+		ok = true;
+	free(dir);
+	return ok;
 }
 
 bool cmd_parse_double(const char *s, double min, double max, double *out)

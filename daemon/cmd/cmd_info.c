@@ -5,6 +5,7 @@
  */
 #include "cmd.h"
 #include "shotfile.h"
+#include "shotmeta.h"
 
 #include <cjson/cJSON.h>
 #include <getopt.h>
@@ -32,7 +33,9 @@ static void usage(FILE *out)
 		"               half, float}, sample_rows, tiles, tile_size, shadow_points,\n"
 		"               shadow_quads, levels\n"
 		"               [{block, samples, entries}], bytes {PART: N},\n"
-		"               total_bytes, format\n"
+		"               total_bytes, format, specular_model (\"prman\" or\n"
+		"               \"rispec\": the highlight of specular() the shot was\n"
+		"               baked and is previewed with)\n"
 		"  -h, --help   Show this help and exit\n"
 		"\n"
 		"Exit status: 0 on success, 1 when the file cannot be read as a shot file,\n"
@@ -94,6 +97,10 @@ int cmd_info(int argc, char **argv)
 	cJSON_AddNumberToObject(out, "format", num(meta, "format"));
 	cJSON_AddNumberToObject(out, "width", num(meta, "width"));
 	cJSON_AddNumberToObject(out, "height", num(meta, "height"));
+	enum sl_specular_model model;
+	bool model_ok = shot_meta_specular_model(meta, &model);
+	cJSON_AddStringToObject(out, "specular_model",
+				model_ok ? sl_specular_model_name(model) : "unknown");
 	cJSON *lights = cJSON_AddArrayToObject(out, "lights");
 	const cJSON *l;
 	cJSON_ArrayForEach(l, cJSON_GetObjectItemCaseSensitive(meta, "lights")) {
@@ -157,6 +164,8 @@ int cmd_info(int argc, char **argv)
 		printf("\nsurface shaders (%d):", cJSON_GetArraySize(surfs));
 		cJSON_ArrayForEach(l, surfs)
 			printf(" %s", l->valuestring);
+		printf("\nspecular model: %s",
+		       model_ok ? sl_specular_model_name(model) : "unknown");
 		printf("\nshading samples: %.0f kept of %.0f shaded (%.2fx fewer)\n", ss, sp,
 		       ss > 0 ? sp / ss : 0.0);
 		printf("indirect entries: %.0f for %.0f subpixel samples (%.2fx fewer)\n", ie, sub,

@@ -10,6 +10,7 @@
 #include "reyes.h"
 #include "ri.h"
 #include "shader_cache.h"
+#include "memlimit.h"
 #include "config.h"
 
 #include <errno.h>
@@ -58,6 +59,10 @@ static void usage(FILE *out)
 		"  --crop X0 X1 Y0 Y1     Render only pixels X0 <= x < X1, Y0 <= y < Y1 (others\n"
 		"                         stay empty); overrides the scene's CropWindow\n"
 		"  --bucket N             Bucket size in pixels (default 16)\n"
+		"  --memory-limit SIZE    Refuse a frame estimated to need more than SIZE bytes\n"
+		"                         (8G, 512M, ...; default: 3/4 of the memory, physical\n"
+		"                         or the cgroup's), naming the Format, PixelSamples or\n"
+		"                         ShadingRate to change, before it is diced\n"
 		"  --set LIGHT.PARAM=V[,V,V]\n"
 		"                         Edit a light: LIGHT is its name (the RIB handle, as\n"
 		"                         'relight info' lists them), PARAM one of its shader's\n"
@@ -413,6 +418,10 @@ static bool plan_outputs(struct render_job *j)
 					o->name, o->mode);
 				ok = false;
 			}
+			if (o->kind != OUT_SKIP &&
+			    !cmd_check_output(o->name, o->from_output ? "relight render: --output"
+								      : o->where))
+				ok = false;
 			o->key = file_key(o->name);
 			total++;
 		}
@@ -557,6 +566,7 @@ int cmd_render(int argc, char **argv)
 		{ "threads", required_argument, NULL, 't' },
 		{ "crop", required_argument, NULL, 'c' },
 		{ "bucket", required_argument, NULL, 'b' },
+		{ "memory-limit", required_argument, NULL, 'm' },
 		{ "set", required_argument, NULL, 's' },
 		{ "quiet", no_argument, NULL, 'q' },
 		{ "strict", no_argument, NULL, 'S' },
@@ -591,6 +601,11 @@ int cmd_render(int argc, char **argv)
 			if (!cmd_parse_uint(optarg, 64, &job.ro.threads) || job.ro.threads == 0)
 				return usage_error("--threads needs a number from 1 to 64, not '%s'",
 						   optarg);
+			break;
+		case 'm':
+			if (!reyes_mem_parse_size(optarg, &job.ro.memory_limit))
+				return usage_error("--memory-limit needs a size such as 8G or 512M, "
+						   "not '%s'", optarg);
 			break;
 		case 'b':
 			if (!cmd_parse_uint(optarg, 256, &job.ro.bucket_size) || job.ro.bucket_size < 4)

@@ -2290,6 +2290,7 @@ static bool run_cpu(struct gpu_shot *s, struct surface *sf, const float *rec, ui
 	if (ok) {
 		struct sl_lighthost lh;
 		sl_lighthost_init(&lh, lx, (int)nl);
+		lh.host.specular_model = sf->spec->slice.specular_model;
 		lh.light_shader_mats = (const float (*)[16])mats;
 		static const char *const space_names[] = { "world" };
 		lh.space_names = space_names;

@@ -318,6 +318,18 @@ struct reyes_hider *reyes_hider_create(const struct reyes_hider_opts *opts)
 	return h;
 }
 
+size_t reyes_hider_sample_bytes(const struct reyes_hider *h)
+{
+	size_t K = 2 * h->mx + 1, L = 2 * h->my + 1, naov = h->o.naov;
+	size_t b = sizeof(struct sample) + sizeof(float) + (K + L) * sizeof(float) +
+		   sizeof(struct hit);
+	if (h->o.record)
+		b += sizeof(float) + sizeof(size_t) + sizeof(struct hit_ref);
+	else
+		b += (4 + 2 * naov) * sizeof(float);
+	return b;
+}
+
 void reyes_hider_destroy(struct reyes_hider *h)
 {
 	if (!h)

@@ -129,6 +129,15 @@ uint64_t reyes_hider_end(struct reyes_hider *h, float *rgba, float *z, float *ao
 uint64_t reyes_hider_end_record(struct reyes_hider *h, const uint32_t **offsets,
 				const struct reyes_vis_entry **entries, float *alpha, float *z);
 
+/**
+ * Bytes a bucket of @h takes per subpixel sample, sampled once by one
+ * opaque grid: the sample, its filter weights and colour (or, recording,
+ * its alpha and list of contributions) and one hit. More hits per sample
+ * (transparency, overlapping grids) take more; the renderer's memory
+ * estimate starts from this.
+ */
+size_t reyes_hider_sample_bytes(const struct reyes_hider *h);
+
 /** The filter's weight at offset (dx, dy) pixels from a pixel's centre. */
 float reyes_filter_eval(enum reyes_filter f, float dx, float dy, float xwidth, float ywidth);
 

@@ -26,8 +26,10 @@
 #include "mathlib.h"
 #include "config.h"
 #include "shader_cache.h"
+#include "memlimit.h"
 
 #include <math.h>
+#include <stdarg.h>
 #include <pthread.h>
 #include <stdatomic.h>
 #include <stdio.h>
@@ -298,7 +300,45 @@ struct render {
 	 */
 	bool keep_unseen;
 	float rate;
+	/*
+	 * The memory guard: the limit, the bytes the frame takes whatever is
+	 * diced (images, buckets), and, as pieces are queued, the micropolygons
+	 * their ShadingRate asks for, spread over the bucket rows they span,
+	 * and the jobs they will split into.
+	 */
+	uint64_t limit;
+	double fixed_bytes, job_bytes, total_points;
+	double *row_points;              /* nby: points alive while the row is rendered */
+	double row_most;                 /* the largest of them, in row row_fullest */
+	uint32_t row_fullest;
+	bool predicted;                  /* inside a piece already counted */
 };
+
+/* Bytes per shaded point: the hider's grid (x y z at both times, Ci, Oi) and AOVs. */
+static double point_bytes(const struct render *r)
+{
+	return (12.0 + r->naov_planes) * sizeof(float);
+}
+
+/* The bake keeps, per shaded point, its cached values: the estimate's guess of their size. */
+#define BAKE_POINT_BYTES 64.0
+
+/* "FILE:LINE: error: " for @loc, or "relight: error: " when no request set it. */
+static void loc_error(const struct render *r, struct rib_loc loc, const char *fmt, ...)
+	__attribute__((format(printf, 3, 4)));
+
+static void loc_error(const struct render *r, struct rib_loc loc, const char *fmt, ...)
+{
+	if (loc.file)
+		fprintf(r->diag, "%s:%u: error: ", loc.file, loc.line);
+	else
+		fprintf(r->diag, "relight: error: ");
+	va_list ap;
+	va_start(ap, fmt);
+	vfprintf(r->diag, fmt, ap);
+	va_end(ap);
+	fputc('\n', r->diag);
+}
 
 /* ---- bounding and splitting ---- */
 
@@ -540,6 +580,76 @@ static bool piece_extent_unseen(const struct render *r, const struct reyes_patch
 
 static void split_piece(struct render *r, const struct reyes_patch *pa);
 
+/* What the frame needs beyond its fixed part: the fullest bucket row's points and the jobs. */
+static double working_bytes(const struct render *r)
+{
+	double b = r->row_most * point_bytes(r) + r->job_bytes;
+	if (r->o->bake)
+		b += r->total_points * BAKE_POINT_BYTES;
+	return b;
+}
+
+/*
+ * Count what a piece @lu x @lv pixels long asks for at @rate before it is
+ * split: (lu / sqrt(rate) + 1) (lv / sqrt(rate) + 1) points, but no more
+ * than twice the area of its raster bound on screen (with the filter
+ * margin) over the rate: what splitting culls off screen is not diced, and
+ * a piece seen in perspective has shorter edges far away than its longest
+ * ones (twice: a piece may fold over itself, a sphere's two halves). They
+ * are alive from the first bucket row the piece touches to the last (a
+ * job's grid spans two rows or so, so a piece over k rows keeps about 2/k
+ * of its points alive at once); the jobs it splits into are counted too.
+ * False, with the message, when the frame would then need more than the
+ * limit: the piece is not split.
+ */
+static bool predict_piece(struct render *r, const struct reyes_patch *pa, float lu, float lv,
+			  float rate, const float rb[4])
+{
+	if (!r->limit || !r->row_points || atomic_load(&r->failed))
+		return !atomic_load(&r->failed);
+	double edge = sqrt((double)rate);
+	double pts = ((double)lu / edge + 1) * ((double)lv / edge + 1);
+	if (rb[2] > rb[0] || rb[3] > rb[1]) {
+		double x0 = fmax(rb[0], r->px0 - r->margin), x1 = fmin(rb[2], r->px1 + r->margin);
+		double y0 = fmax(rb[1], r->py0 - r->margin), y1 = fmin(rb[3], r->py1 + r->margin);
+		double on = fmax(x1 - x0 + 1, 0) * fmax(y1 - y0 + 1, 0);
+		pts = fmin(pts, 2 * on / rate + 1);
+	}
+	double njobs = fmin(ceil(pts / r->max_points), ldexp(1, MAX_SPLIT_DEPTH - pa->depth));
+	uint32_t row0 = 0, row1 = r->nby - 1;
+	if (rb[3] > rb[1]) {
+		double top = fmax(rb[1] - r->margin - r->py0, 0) / r->bucket;
+		double bottom = fmax(rb[3] + r->margin - r->py0, 0) / r->bucket;
+		row0 = top < r->nby ? (uint32_t)top : r->nby - 1;
+		row1 = bottom < r->nby ? (uint32_t)bottom : r->nby - 1;
+	}
+	double alive = pts * fmin(1.0, 2.0 / (row1 - row0 + 1));
+	for (uint32_t k = row0; k <= row1; k++) {
+		r->row_points[k] += alive;
+		if (r->row_points[k] > r->row_most) {
+			r->row_most = r->row_points[k];
+			r->row_fullest = k;
+		}
+	}
+	r->total_points += pts;
+	r->job_bytes += njobs * sizeof(struct job);
+	double need = r->fixed_bytes + working_bytes(r);
+	if (need <= (double)r->limit)
+		return true;
+	const struct reyes_attrs *a = pa->prim->attrs;
+	char est[32], lim[32];
+	loc_error(r, a->shading_rate_loc,
+		  "ShadingRate %g%s asks for about %.3g micropolygons (%s with the rest of the "
+		  "frame, the fullest bucket row %u), over the memory limit of %s (--memory-limit): "
+		  "raise the ShadingRate%s", (double)(r->rate > 0 ? r->rate : rate),
+		  a->shading_rate_loc.file ? "" : " (the default)", r->total_points,
+		  reyes_mem_format(est, sizeof(est), (uint64_t)fmin(need, 1.8e19)), r->row_fullest,
+		  reyes_mem_format(lim, sizeof(lim), r->limit),
+		  r->o->bake ? ", or bake fewer pixels" : "");
+	atomic_store(&r->failed, true);
+	return false;
+}
+
 /*
  * Dice a piece @lu x @lv pixels long at the shading rate, in one grid if it
  * fits, else split it in two.
@@ -551,13 +661,18 @@ static void queue_piece(struct render *r, const struct reyes_patch *pa, float lu
 		     : pa->prim->attrs->shading_rate > 0 ? pa->prim->attrs->shading_rate : 1;
 	float edge = sqrtf(rate);
 	float fu = ceilf(lu / edge), fv = ceilf(lv / edge);
+	if (!r->predicted && !predict_piece(r, pa, lu, lv, rate, rb))
+		return;
 	uint32_t nu = (uint32_t)fminf(fmaxf(fu, 1), 4096) + 1;
 	uint32_t nv = (uint32_t)fminf(fmaxf(fv, 1), 4096) + 1;
 	if ((uint64_t)nu * nv > r->max_points && pa->depth < MAX_SPLIT_DEPTH) {
 		struct reyes_patch half[2];
 		reyes_patch_split(pa, lu >= lv, half);
+		bool outer = !r->predicted;
+		r->predicted = true;
 		split_piece(r, &half[0]);
 		split_piece(r, &half[1]);
+		r->predicted = !outer;
 		return;
 	}
 	while ((uint64_t)nu * nv > r->max_points) {
@@ -572,6 +687,8 @@ static void queue_piece(struct render *r, const struct reyes_patch *pa, float lu
 /* Split a piece until it can be diced in one grid, then queue it. */
 static void split_piece(struct render *r, const struct reyes_patch *pa)
 {
+	if (atomic_load(&r->failed))
+		return;
 	float rb[4] = { 0, 0, 0, 0 }, zmin;
 	enum bound_result br = piece_bound(r, pa, rb, &zmin);
 	if (r->keep_unseen) {
@@ -934,6 +1051,7 @@ static void setup_host(struct tctx *t, struct sl_exec **lights, int nlights,
 	t->lh.host.textureinfo = host_textureinfo;
 	t->lh.host.option = host_option;
 	t->lh.host.rendererinfo = host_rendererinfo;
+	t->lh.host.specular_model = t->r->scene->opts.specular_model;
 }
 
 static struct sl_exec *light_exec(struct tctx *t, uint32_t li)
@@ -1577,6 +1695,54 @@ bool reyes_scene_is_shadow_pass(const struct reyes_scene *scene)
 	return shadow_pass;
 }
 
+/*
+ * What the frame takes whatever is diced, against the limit: the images
+ * (colour, depth, AOVs, and a copy to write a display), and each thread's
+ * bucket of subpixel samples with its filter margin; a bake also keeps an
+ * indirect-framebuffer entry per subpixel sample at least. False, with the
+ * message naming Format and PixelSamples, when that alone is over. Sets up
+ * the per-row counts predict_piece fills.
+ */
+static bool frame_fits(struct render *r, const struct reyes_hider_opts *ho)
+{
+	const struct reyes_options *so = &r->scene->opts;
+	r->limit = r->o->memory_limit ? r->o->memory_limit : reyes_mem_default_limit();
+	if (!r->limit)
+		return true;
+	double npix = (double)so->xres * so->yres;
+	double nps = (double)ho->xsamples * ho->ysamples;
+	double img = npix * (4 + 1 + r->naov_planes + 1) * sizeof(float);
+	if (!r->o->bake)
+		img += npix * 4 * sizeof(float);
+	struct reyes_hider *probe = reyes_hider_create(ho);
+	double per_sample = probe ? (double)reyes_hider_sample_bytes(probe) : 64;
+	reyes_hider_destroy(probe);
+	double side = r->bucket + 2.0 * ceil(r->margin);
+	double buckets = r->nthreads * side * side * nps * per_sample;
+	double ifb = 0;
+	if (r->o->bake) {
+		double w = (double)(r->px1 - r->px0), h = (double)(r->py1 - r->py0);
+		ifb = w * h * nps * sizeof(struct reyes_vis_entry);
+	}
+	r->fixed_bytes = img + buckets + ifb;
+	if (r->fixed_bytes > (double)r->limit) {
+		char est[32], imgs[32], lim[32], smp[96] = "";
+		if (so->samples_loc.file)
+			snprintf(smp, sizeof(smp), " (%s:%u)", so->samples_loc.file,
+				 so->samples_loc.line);
+		loc_error(r, so->format_loc,
+			  "Format %u %u with PixelSamples %u %u%s needs about %s (images %s), over "
+			  "the memory limit of %s (--memory-limit): lower the Format or the "
+			  "PixelSamples", so->xres, so->yres, ho->xsamples, ho->ysamples, smp,
+			  reyes_mem_format(est, sizeof(est), (uint64_t)fmin(r->fixed_bytes, 1.8e19)),
+			  reyes_mem_format(imgs, sizeof(imgs), (uint64_t)img),
+			  reyes_mem_format(lim, sizeof(lim), r->limit));
+		return false;
+	}
+	r->row_points = calloc(r->nby ? r->nby : 1, sizeof(*r->row_points));
+	return true;
+}
+
 bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opts *opts,
 		  struct reyes_stats *stats)
 {
@@ -1587,8 +1753,8 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	r.diag = opts->diag ? opts->diag : stderr;
 	const struct reyes_options *so = &scene->opts;
 	if (so->xres == 0 || so->yres == 0 || so->xres > 32768 || so->yres > 32768) {
-		fprintf(r.diag, "relight: error: image size %ux%u is out of range\n", so->xres,
-			so->yres);
+		loc_error(&r, so->format_loc, "image size %ux%u is out of range", so->xres,
+			  so->yres);
 		return false;
 	}
 	setup_camera(&r.cam, so);
@@ -1609,7 +1775,7 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 			r.py1 = so->yres;
 	}
 	if (r.px1 <= r.px0 || r.py1 <= r.py0) {
-		fprintf(r.diag, "relight: error: the crop window is empty\n");
+		loc_error(&r, so->crop_loc, "the crop window is empty");
 		return false;
 	}
 	r.margin = fmaxf(so->filter_width[0], so->filter_width[1]) * 0.5f + 1;
@@ -1640,6 +1806,19 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	 */
 	bool shadow_pass = reyes_scene_is_shadow_pass(scene);
 
+	struct reyes_hider_opts ho = {
+		.xres = so->xres, .yres = so->yres,
+		.xsamples = so->xsamples ? so->xsamples : 1, .ysamples = so->ysamples ? so->ysamples : 1,
+		.filter = so->filter, .filter_width = { so->filter_width[0], so->filter_width[1] },
+		.jitter = so->jitter, .seed = 1,
+		.opacity_threshold = so->opacity_threshold > 0 ? so->opacity_threshold : 0.996f,
+		.depthfilter = so->depthfilter, .naov = opts->bake ? 0 : r.naov_planes,
+		.lens = { r.cam.lens[0], r.cam.lens[1] }, .focus = r.cam.focus,
+		.record = opts->bake != NULL,
+	};
+	if (ok)
+		ok = frame_fits(&r, &ho);
+
 	/* pieces -> jobs */
 	struct reyes_patch *pieces = NULL;
 	size_t np = 0, capp = 0;
@@ -1653,6 +1832,10 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 			split_piece(&r, &pieces[k]);
 	}
 	free(pieces);
+	if (atomic_load(&r.failed))
+		ok = false;
+	free(r.row_points);
+	r.row_points = NULL;
 	if (r.dropped)
 		fprintf(r.diag, "relight: warning: %llu pieces crossing the eye plane were "
 			"dropped\n", (unsigned long long)r.dropped);
@@ -1663,23 +1846,13 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	r.z = ok ? malloc(npix * sizeof(float)) : NULL;
 	r.aov = ok ? calloc(npix * (r.naov_planes + 1), sizeof(float)) : NULL;
 	if (ok && (!r.rgba || !r.z || !r.aov)) {
-		fprintf(r.diag, "relight: error: out of memory for a %ux%u image\n", so->xres,
-			so->yres);
+		loc_error(&r, so->format_loc, "out of memory for a %ux%u image", so->xres,
+			  so->yres);
 		ok = false;
 	}
 	if (r.z)
 		for (size_t i = 0; i < npix; i++)
 			r.z[i] = 1e30f;
-	struct reyes_hider_opts ho = {
-		.xres = so->xres, .yres = so->yres,
-		.xsamples = so->xsamples ? so->xsamples : 1, .ysamples = so->ysamples ? so->ysamples : 1,
-		.filter = so->filter, .filter_width = { so->filter_width[0], so->filter_width[1] },
-		.jitter = so->jitter, .seed = 1,
-		.opacity_threshold = so->opacity_threshold > 0 ? so->opacity_threshold : 0.996f,
-		.depthfilter = so->depthfilter, .naov = opts->bake ? 0 : r.naov_planes,
-		.lens = { r.cam.lens[0], r.cam.lens[1] }, .focus = r.cam.focus,
-		.record = opts->bake != NULL,
-	};
 	r.ctx = calloc(r.nthreads, sizeof(*r.ctx));
 	for (uint32_t i = 0; ok && i < r.nthreads; i++) {
 		struct tctx *t = &r.ctx[i];
@@ -1797,8 +1970,8 @@ bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *o
 	}
 	const struct reyes_options *so = &scene->opts;
 	if (so->xres == 0 || so->yres == 0 || so->xres > 32768 || so->yres > 32768) {
-		fprintf(r.diag, "relight: error: image size %ux%u is out of range\n", so->xres,
-			so->yres);
+		loc_error(&r, so->format_loc, "image size %ux%u is out of range", so->xres,
+			  so->yres);
 		return false;
 	}
 	r.scene = scene;

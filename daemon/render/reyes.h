@@ -64,6 +64,9 @@ struct reyes_render_opts {
 	/* Where the default surface (defaultsurface.sl) is compiled once for every
 	 * frame of a run (NULL: compiled by each render). */
 	struct reyes_shader_cache *shader_cache;
+	/* Bytes the frame may take (render/memlimit.h); 0: reyes_mem_default_limit(). A
+	 * frame estimated over it fails before it is diced, naming what to change. */
+	uint64_t memory_limit;
 };
 
 /** What a render did, for the summary line and the benchmark. */

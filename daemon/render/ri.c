@@ -311,6 +311,7 @@ static void req_format(struct ri *ri, const struct rib_request *r)
 	}
 	ri->opt.o.xres = (uint32_t)x;
 	ri->opt.o.yres = (uint32_t)y;
+	ri->opt.o.format_loc = reyes_ri_keep_loc(ri, r->loc);
 	/* A negative aspect ratio keeps the current one. */
 	if (a > 0)
 		ri->opt.o.pixel_aspect = (float)a;
@@ -354,6 +355,7 @@ static void req_crop_window(struct ri *ri, const struct rib_request *r)
 		return;
 	}
 	memcpy(ri->opt.o.crop, c, sizeof(c));
+	ri->opt.o.crop_loc = reyes_ri_keep_loc(ri, r->loc);
 }
 
 bool reyes_ri_is_identity(const float m[16])
@@ -483,6 +485,7 @@ static void req_pixel_samples(struct ri *ri, const struct rib_request *r)
 	}
 	ri->opt.o.xsamples = (uint32_t)s[0];
 	ri->opt.o.ysamples = (uint32_t)s[1];
+	ri->opt.o.samples_loc = reyes_ri_keep_loc(ri, r->loc);
 }
 
 static void req_pixel_filter(struct ri *ri, const struct rib_request *r)
@@ -724,11 +727,36 @@ static const char *expand_path(struct ri *ri, const char *spec, const char *prev
 	return out;
 }
 
+/* Option "shading" "string specularmodel" ["prman" | "rispec"] */
+static void shading_option(struct ri *ri, const struct rib_request *r)
+{
+	for (uint32_t i = 0; i < r->nparams; i++) {
+		const struct rib_param *p = &r->params[i];
+		struct decl d;
+		bool has;
+		const char *pname;
+		if (!reyes_ri_param_token(ri, p, r->name, &d, &has, &pname))
+			return;
+		if (strcmp(pname, "specularmodel") != 0) {
+			reyes_ri_warn(ri, p->loc, "unknown option 'shading' '%s' ignored", pname);
+			continue;
+		}
+		if (reyes_ri_is_numbers(&p->value) || p->value.n != 1 ||
+		    !sl_specular_model_parse(p->value.strs[0], &ri->opt.o.specular_model))
+			reyes_ri_err(ri, p->loc,
+				     "Option \"shading\" \"specularmodel\" takes \"prman\" or \"rispec\"");
+	}
+}
+
 static void req_option(struct ri *ri, const struct rib_request *r)
 {
 	const char *name;
 	if (!option_ok(ri, r) || !reyes_ri_str_arg(ri, r, 0, &name))
 		return;
+	if (strcmp(name, "shading") == 0) {
+		shading_option(ri, r);
+		return;
+	}
 	if (strcmp(name, "searchpath") != 0) {
 		reyes_ri_warn(ri, r->loc, "unknown option '%s' ignored", name);
 		return;
@@ -835,6 +863,7 @@ const struct reyes_attrs *reyes_ri_make_bundle(struct ri *ri, const struct xform
 	b->sides = a->sides;
 	b->flip_normals = a->inside;
 	b->shading_rate = a->shading_rate;
+	b->shading_rate_loc = a->shading_rate_loc;
 	b->smooth = a->smooth;
 	b->identifier = a->identifier;
 	b->displacement_bound = a->dbound;
@@ -923,6 +952,7 @@ static void req_shading_rate(struct ri *ri, const struct rib_request *r)
 	if (!(s > 0))
 		FAIL(ri, r->loc, "ShadingRate must be positive, got %g", s);
 	ri->gs.a.shading_rate = s;
+	ri->gs.a.shading_rate_loc = reyes_ri_keep_loc(ri, r->loc);
 	ri->gs.a.objset |= OBJ_SHADING_RATE;
 	attrs_changed(ri);
 }

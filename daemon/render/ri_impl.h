@@ -141,6 +141,7 @@ struct attrstate {
 	/* The orientation differs from the coordinate system's handedness. */
 	bool inside;
 	float shading_rate;
+	struct rib_loc shading_rate_loc; /* its ShadingRate request (file NULL: the default) */
 	bool smooth;
 	const char *identifier;
 	float dbound;

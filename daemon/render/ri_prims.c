@@ -1175,8 +1175,10 @@ static void instance_attrs(struct attrstate *a, const struct attrstate *def)
 		a->sides = def->sides;
 	if (set & OBJ_ORIENTATION)
 		a->inside = def->inside;
-	if (set & OBJ_SHADING_RATE)
+	if (set & OBJ_SHADING_RATE) {
 		a->shading_rate = def->shading_rate;
+		a->shading_rate_loc = def->shading_rate_loc;
+	}
 	if (set & OBJ_INTERPOLATION)
 		a->smooth = def->smooth;
 	if (set & OBJ_IDENTIFIER)

@@ -9,6 +9,7 @@
 #define REYES_SCENE_H
 
 #include "exec.h"
+#include "rib.h"
 
 #include <stdbool.h>
 #include <stdint.h>
@@ -39,6 +40,8 @@ struct reyes_display {
 
 struct reyes_options {
 	uint32_t xres, yres;            /* Format (default 640 480) */
+	/* Where Format, PixelSamples and CropWindow were given (file NULL: not given) */
+	struct rib_loc format_loc, samples_loc, crop_loc;
 	float pixel_aspect;             /* default 1 */
 	float frame_aspect;             /* FrameAspectRatio, 0: xres*pixel_aspect/yres */
 	float screen[4];                /* ScreenWindow left right bottom top */
@@ -63,6 +66,8 @@ struct reyes_options {
 	const char *texture_path;
 	const char *archive_path;
 	const char *include_path;       /* where shaders' #include look after their own folder */
+	/* Option "shading" "specularmodel": specular()'s highlight (default 0, PRMan's) */
+	enum sl_specular_model specular_model;
 	float world_to_camera[16];      /* the transform at WorldBegin (at shutter open) */
 	float world_to_camera1[16];     /* at shutter close: a moving camera's second sample */
 	bool camera_moving;             /* world_to_camera1 differs from world_to_camera */
@@ -107,6 +112,7 @@ struct reyes_attrs {
 	int sides;                            /* 1 or 2 */
 	bool flip_normals;                    /* Orientation / ReverseOrientation vs handedness */
 	float shading_rate;                   /* area in pixels per micropolygon, default 1 */
+	struct rib_loc shading_rate_loc;      /* its ShadingRate request (file NULL: the default) */
 	bool smooth;                          /* ShadingInterpolation "smooth" (default constant) */
 	const char *identifier;               /* Attribute "identifier" "name" */
 	float displacement_bound;             /* Attribute "displacementbound" "sphere" */

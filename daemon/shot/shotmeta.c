@@ -162,7 +162,27 @@ struct sl_spec *shot_meta_specialize(const cJSON *meta, const cJSON *surface,
 			names[nd++] = d->valuestring;
 	const cJSON *ld = cJSON_GetObjectItemCaseSensitive(meta, "light_derivatives");
 	unsigned flags = SL_SPEC_CACHE_PARAMS | (cJSON_IsTrue(ld) ? SL_SPEC_LIGHT_DERIVATIVES : 0);
-	return sl_specialize_ex(prog, names, nd, flags, diag);
+	enum sl_specular_model model;
+	if (!shot_meta_specular_model(meta, &model)) {
+		fprintf(diag ? diag : stderr, "relight: error: the shot's \"specular_model\" is "
+			"neither \"prman\" nor \"rispec\"\n");
+		return NULL;
+	}
+	struct sl_spec *sp = sl_specialize_ex(prog, names, nd, flags, diag);
+	if (sp)
+		sp->slice.specular_model = model;
+	return sp;
+}
+
+bool shot_meta_specular_model(const cJSON *meta, enum sl_specular_model *m)
+{
+	const cJSON *j = cJSON_GetObjectItemCaseSensitive(meta, "specular_model");
+	if (!j) {
+		/* shots from before the key were baked with the RiSpec formula */
+		*m = SL_SPECULAR_RISPEC;
+		return true;
+	}
+	return sl_specular_model_parse(cJSON_IsString(j) ? j->valuestring : NULL, m);
 }
 
 bool shot_meta_set_params(struct sl_exec *x, const cJSON *params, const char *shot, FILE *diag)

@@ -8,6 +8,7 @@
 #define SHOT_META_H
 
 #include "shotfile.h"
+#include "mathlib.h"
 
 #include <cjson/cJSON.h>
 #include <stdbool.h>
@@ -38,11 +39,20 @@ struct sl_program *shot_meta_shader(const cJSON *o, const char *shot, FILE *diag
 /**
  * Specialize surface shader @prog of surface entry @surface as the bake did:
  * its "dynamic_params" editable, uniform parameters cached
- * (SL_SPEC_CACHE_PARAMS), and Ps's derivatives kept when the shot's lights
- * take them (@meta "light_derivatives"). NULL with messages on @diag.
+ * (SL_SPEC_CACHE_PARAMS), Ps's derivatives kept when the shot's lights
+ * take them (@meta "light_derivatives"), and the slice's specular model
+ * the shot's (shot_meta_specular_model). NULL with messages on @diag.
  */
 struct sl_spec *shot_meta_specialize(const cJSON *meta, const cJSON *surface,
 				     const struct sl_program *prog, FILE *diag);
+
+/**
+ * The specular model the shot was baked with (@meta "specular_model":
+ * "prman" or "rispec"; a shot without the key is from before it and was
+ * baked with "rispec"). shot_meta_specialize puts it in the spec's slice;
+ * a CPU host shading the shot sets it too. False for another value.
+ */
+bool shot_meta_specular_model(const cJSON *meta, enum sl_specular_model *m);
 
 /**
  * Set the parameters of a "params" array ({name, type, value}) on @x. False

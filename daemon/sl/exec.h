@@ -13,6 +13,7 @@
 #define SL_EXEC_H
 
 #include "ir.h"
+#include "mathlib.h"
 
 struct sl_exec;
 struct sl_tex_lookup;
@@ -68,6 +69,9 @@ struct sl_host {
 
 	/** printf() output; NULL prints to stdout. */
 	void (*print)(void *user, const char *text);
+
+	/** The highlight of specular() and specularbrdf(); zero is PRMan's (mathlib.h). */
+	enum sl_specular_model specular_model;
 };
 
 /** One filtered texture, environment or shadow lookup over the active points. */

@@ -468,6 +468,12 @@ static void do_random(struct sl_exec *x, const struct sl_insn *in)
 /* ------------------------------------------------------------------------ */
 /* Geometry                                                                  */
 
+/* The host's specular model; PRMan's without a host. */
+static enum sl_specular_model specular_model(const struct sl_exec *x)
+{
+	return x->host ? x->host->specular_model : SL_SPECULAR_PRMAN;
+}
+
 static void do_geometry(struct sl_exec *x, const struct sl_insn *in, int id)
 {
 	int32_t d = in->dst;
@@ -555,7 +561,7 @@ static void do_geometry(struct sl_exec *x, const struct sl_insn *in, int id)
 			get3(x, a[0], i, p);
 			get3(x, a[1], i, q);
 			get3(x, a[2], i, s);
-			float v = sl_specularbrdf(p, q, s, getf(x, a[3], i));
+			float v = sl_specularbrdf(p, q, s, getf(x, a[3], i), specular_model(x));
 			float c3[3] = { v, v, v };
 			put3(x, d, i, c3);
 			break;
@@ -982,7 +988,7 @@ static void do_lighting(struct sl_exec *x, const struct sl_insn *in, int id)
 				get3(x, a[1], i, V);
 				float p = getf(x, a[2], i);
 				if (id == SL_BI_SPECULAR) {
-					k = sl_specularbrdf(Ln, N, V, p);
+					k = sl_specularbrdf(Ln, N, V, p, specular_model(x));
 				} else {
 					float mv[3], Vn[3], R[3];
 					sl_v3_normalize(Vn, V);

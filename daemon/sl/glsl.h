@@ -9,12 +9,13 @@
 #define SL_GLSL_H
 
 #include "ir.h"
+#include "mathlib.h"
 
 #include <stdio.h>
 
 /** The part of a program to emit, and where its data comes from. */
 /** Bumped whenever the generated code changes for the same input. */
-#define SL_GLSL_GENERATOR_VERSION 3
+#define SL_GLSL_GENERATOR_VERSION 4
 
 struct sl_slice {
 	const struct sl_program *prog;
@@ -66,6 +67,9 @@ struct sl_slice {
 	 * its own uniforms. NULL: outputs go to the buffer.
 	 */
 	const char *sink;
+	/* The highlight of specular() and specularbrdf(), as the interpreter's
+	 * host says it (struct sl_host); zero is PRMan's. */
+	enum sl_specular_model specular_model;
 };
 
 /* A shadow() call of the generated code (with input_steps): which map it

@@ -428,13 +428,15 @@ static const char fresnel_glsl[] =
 	"\tKt = 1.0 - Kr;\n"
 	"}\n";
 
+/* The exponent's numerator, 8.0 (PRMan's model) or 1.0 (the RiSpec's), is printed in
+ * (sl_glsl_emit_helpers). */
 static const char specbrdf_glsl[] =
 	"float rl_specbrdf(vec3 L, vec3 N, vec3 V, float rough) {\n"
 	"\tvec3 h = rl_normalize(L + V);\n"
 	"\tfloat d = dot(N, h);\n"
 	"\tif (!(d > 0.0)) return 0.0;\n"
 	"\tif (!(rough > 1e-6)) rough = 1e-6;\n"
-	"\treturn rl_pow(d, 1.0 / rough);\n"
+	"\treturn rl_pow(d, %s / rough);\n"
 	"}\n";
 
 /* Is @L within @angle of @axis? A zero L or axis is; angle >= pi (the float above) always. */
@@ -735,6 +737,11 @@ void sl_glsl_emit_helpers(struct glsl_gen *g)
 		int h = helper_order[k];
 		if (!g->need[h])
 			continue;
+		if (h == GH_SPECBRDF) {
+			bool rispec = g->slice->specular_model == SL_SPECULAR_RISPEC;
+			rl_strbuf_printf(b, specbrdf_glsl, rispec ? "1.0" : "8.0");
+			continue;
+		}
 		rl_strbuf_puts(b, helpers[h].text);
 		if (h != GH_MATH)
 			continue;

@@ -280,7 +280,26 @@ void sl_rotate_point(float r[3], const float q[3], float angle, const float p0[3
 		r[c] = sl_finite(d[c] + p0[c]);
 }
 
-float sl_specularbrdf(const float L[3], const float N[3], const float V[3], float roughness)
+const char *sl_specular_model_name(enum sl_specular_model m)
+{
+	return m == SL_SPECULAR_RISPEC ? "rispec" : "prman";
+}
+
+bool sl_specular_model_parse(const char *name, enum sl_specular_model *m)
+{
+	if (!name)
+		return false;
+	if (!strcmp(name, "prman"))
+		*m = SL_SPECULAR_PRMAN;
+	else if (!strcmp(name, "rispec"))
+		*m = SL_SPECULAR_RISPEC;
+	else
+		return false;
+	return true;
+}
+
+float sl_specularbrdf(const float L[3], const float N[3], const float V[3], float roughness,
+		      enum sl_specular_model m)
 {
 	float h[3] = { L[0] + V[0], L[1] + V[1], L[2] + V[2] };
 	sl_v3_normalize(h, h);
@@ -289,7 +308,7 @@ float sl_specularbrdf(const float L[3], const float N[3], const float V[3], floa
 		return 0.0f;
 	if (!(roughness > 1e-6f))
 		roughness = 1e-6f;
-	return sl_pow(d, 1.0f / roughness);
+	return sl_pow(d, (m == SL_SPECULAR_RISPEC ? 1.0f : 8.0f) / roughness);
 }
 
 /* ---- 4x4 matrices ---- */

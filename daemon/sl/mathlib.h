@@ -101,8 +101,23 @@ void sl_faceforward(float r[3], const float N[3], const float I[3], const float 
  *  (right-handed about p1 - p0). A degenerate axis leaves q unchanged. */
 void sl_rotate_point(float r[3], const float q[3], float angle, const float p0[3],
 		     const float p1[3]);
-/** pow(max(0, N . normalize(L + V)), 1/roughness); roughness <= 0 treated as 1e-6. */
-float sl_specularbrdf(const float L[3], const float N[3], const float V[3], float roughness);
+/**
+ * The highlight of specular() and specularbrdf(), chosen per scene with
+ * Option "shading" "string specularmodel" (docs/rsl.md). Both are
+ * pow(max(0, N . H), e) with H = normalize(L + V) and no normalization
+ * factor; they differ in the exponent e.
+ */
+enum sl_specular_model {
+	SL_SPECULAR_PRMAN,      /* e = 8 / roughness: PRMan's, as BMRT and Aqsis draw it (default) */
+	SL_SPECULAR_RISPEC,     /* e = 1 / roughness: the RenderMan Interface Specification's text */
+};
+/** "prman" or "rispec". */
+const char *sl_specular_model_name(enum sl_specular_model m);
+/** The model named @name ("prman", "rispec"); false for another name or NULL. */
+bool sl_specular_model_parse(const char *name, enum sl_specular_model *m);
+/** specularbrdf() under model @m; roughness <= 0 is treated as 1e-6. */
+float sl_specularbrdf(const float L[3], const float N[3], const float V[3], float roughness,
+		      enum sl_specular_model m);
 
 /* ---- 4x4 matrices ---- */
 

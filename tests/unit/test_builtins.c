@@ -683,46 +683,57 @@ static void test_lighting(void)
 	struct sl_lighthost lh;
 	sl_lighthost_init(&lh, lights, 5);
 
-	struct run r = run_src(
-		"surface t(output varying color amb = -1, dif = -1, spe = -1, pho = -1, brdf = -1;\n"
-		"  output varying float isum = -1, miss = -1, nlit = 0;)\n"
-		"{\n"
-		"  normal Nf = normalize(N);\n"
-		"  vector V = vector(0, 0, 1);\n"
-		"  amb = ambient(); dif = diffuse(Nf); spe = specular(Nf, V, 0.1);\n"
-		"  pho = phong(Nf, V, 5);\n"
-		"  brdf = specularbrdf(normalize(vector(0.6, 0, 0.8)), Nf, V, 0.1);\n"
-		"  isum = 0; miss = 0;\n"
-		"  illuminance(P, Nf, PI / 2) {\n"
-		"    float k = 0, z = 0;\n"
-		"    if (lightsource(\"intensity\", k) == 1) isum += k;\n"
-		"    miss += lightsource(\"nosuch\", z);\n"
-		"    nlit += 1;\n"
-		"  }\n"
-		"  Ci = dif;\n"
-		"}\n", &lh.host);
-	/* The key light's half vector with V = +z. */
-	double hx = 0.6, hz = 1.8, hl = sqrt(hx * hx + hz * hz);
-	double brdf_key = pow(hz / hl, 10);
-	/* Light 4 from (0, .6, .8): same geometry rotated. */
-	double spec = 2 * brdf_key + 1 * 1.0;
-	double phong = 2 * pow(0.8, 5) + 1 * 1.0;
-	for (uint32_t i = 0; i < NPTS && r.ok; i++) {
-		for (int c = 0; c < 3; c++) {
-			CHECK_NEAR(out(&r, "amb", c, i), 0.25, 1e-6);
-			/* key 2 * .8 + light 4: 4 * .8; the fill is non-diffuse. */
-			CHECK_NEAR(out(&r, "dif", c, i), 2 * 0.8 + 4 * 0.8, 1e-5);
-			CHECK_NEAR(ci(&r, c, i), 2 * 0.8 + 4 * 0.8, 1e-5);
-			CHECK_NEAR(out(&r, "spe", c, i), spec, 1e-5);
-			CHECK_NEAR(out(&r, "pho", c, i), phong, 1e-5);
-			CHECK_NEAR(out(&r, "brdf", c, i), brdf_key, 1e-5);
+	/*
+	 * specular() and specularbrdf() with roughness 0.1 under each model:
+	 * max(0, N.H)^e with e = 1 / 0.1 = 10 (RiSpec) and e = 8 / 0.1 = 80
+	 * (PRMan's, the default). phong() is the same under both.
+	 */
+	static const enum sl_specular_model models[2] = { SL_SPECULAR_RISPEC, SL_SPECULAR_PRMAN };
+	static const double exponent[2] = { 10, 80 };
+	struct run r;
+	for (int m = 0; m < 2; m++) {
+		lh.host.specular_model = models[m];
+		r = run_src(
+			"surface t(output varying color amb = -1, dif = -1, spe = -1, pho = -1, brdf = -1;\n"
+			"  output varying float isum = -1, miss = -1, nlit = 0;)\n"
+			"{\n"
+			"  normal Nf = normalize(N);\n"
+			"  vector V = vector(0, 0, 1);\n"
+			"  amb = ambient(); dif = diffuse(Nf); spe = specular(Nf, V, 0.1);\n"
+			"  pho = phong(Nf, V, 5);\n"
+			"  brdf = specularbrdf(normalize(vector(0.6, 0, 0.8)), Nf, V, 0.1);\n"
+			"  isum = 0; miss = 0;\n"
+			"  illuminance(P, Nf, PI / 2) {\n"
+			"    float k = 0, z = 0;\n"
+			"    if (lightsource(\"intensity\", k) == 1) isum += k;\n"
+			"    miss += lightsource(\"nosuch\", z);\n"
+			"    nlit += 1;\n"
+			"  }\n"
+			"  Ci = dif;\n"
+			"}\n", &lh.host);
+		/* The key light's half vector with V = +z. */
+		double hx = 0.6, hz = 1.8, hl = sqrt(hx * hx + hz * hz);
+		double brdf_key = pow(hz / hl, exponent[m]);
+		/* Light 4 from (0, .6, .8): same geometry rotated. */
+		double spec = 2 * brdf_key + 1 * 1.0;
+		double phong = 2 * pow(0.8, 5) + 1 * 1.0;
+		for (uint32_t i = 0; i < NPTS && r.ok; i++) {
+			for (int c = 0; c < 3; c++) {
+				CHECK_NEAR(out(&r, "amb", c, i), 0.25, 1e-6);
+				/* key 2 * .8 + light 4: 4 * .8; the fill is non-diffuse. */
+				CHECK_NEAR(out(&r, "dif", c, i), 2 * 0.8 + 4 * 0.8, 1e-5);
+				CHECK_NEAR(ci(&r, c, i), 2 * 0.8 + 4 * 0.8, 1e-5);
+				CHECK_NEAR(out(&r, "spe", c, i), spec, 1e-5);
+				CHECK_NEAR(out(&r, "pho", c, i), phong, 1e-5);
+				CHECK_NEAR(out(&r, "brdf", c, i), brdf_key, 1e-5);
+			}
+			/* illuminance visits the lights above the horizon: 2 + 1 + 4. */
+			CHECK_NEAR(out(&r, "isum", 0, i), 7, 1e-6);
+			CHECK_NEAR(out(&r, "nlit", 0, i), 3, 0);
+			CHECK_NEAR(out(&r, "miss", 0, i), 0, 0);
 		}
-		/* illuminance visits the lights above the horizon: 2 + 1 + 4. */
-		CHECK_NEAR(out(&r, "isum", 0, i), 7, 1e-6);
-		CHECK_NEAR(out(&r, "nlit", 0, i), 3, 0);
-		CHECK_NEAR(out(&r, "miss", 0, i), 0, 0);
+		done(&r);
 	}
-	done(&r);
 
 	/* Without lights: everything is black, nothing fails. */
 	r = run_src("surface t(output varying color d = -1;) { d = diffuse(N) + ambient() + "

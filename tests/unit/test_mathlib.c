@@ -117,16 +117,47 @@ static void test_vectors(void)
 	sl_rotate_point(r, q, PI_F / 2, ax0, ax0);
 	check_v3("rotate degenerate", r, 2, 0, 5, 0);
 
-	/* specularbrdf: N along the half vector gives 1; roughness sharpens. */
+	/*
+	 * specularbrdf under both models: max(0, N . H)^e, H = normalize(L + V),
+	 * e = 1 / roughness (RiSpec) or 8 / roughness (PRMan's). N along the
+	 * half vector gives 1 under both.
+	 */
+	const enum sl_specular_model RS = SL_SPECULAR_RISPEC, PR = SL_SPECULAR_PRMAN;
 	float L[3] = { 0, 0, 1 }, V[3] = { 0, 0, 1 };
-	CHECK_NEAR(sl_specularbrdf(L, Nup, V, 0.1f), 1.0, 1e-6);
+	CHECK_NEAR(sl_specularbrdf(L, Nup, V, 0.1f, RS), 1.0, 1e-6);
+	CHECK_NEAR(sl_specularbrdf(L, Nup, V, 0.1f, PR), 1.0, 1e-6);
 	float L2[3] = { 1, 0, 1 };
 	sl_v3_normalize(L2, L2);
-	/* H at 22.5 degrees from N: cos^10. */
-	CHECK_NEAR(sl_specularbrdf(L2, Nup, V, 0.1f), pow(cos(PI_F / 8), 10), 1e-5);
+	/* H at 22.5 degrees from N: cos^10 (RiSpec), cos^80 (PRMan) at roughness 0.1. */
+	CHECK_NEAR(sl_specularbrdf(L2, Nup, V, 0.1f, RS), pow(cos(PI_F / 8), 10), 1e-5);
+	CHECK_NEAR(sl_specularbrdf(L2, Nup, V, 0.1f, PR), pow(cos(PI_F / 8), 80), 1e-6);
+	/* PRMan's highlight at roughness 0.8 is the RiSpec's at 0.1. */
+	CHECK_NEAR(sl_specularbrdf(L2, Nup, V, 0.8f, PR), pow(cos(PI_F / 8), 10), 1e-5);
+	/*
+	 * The highlight's half width: the brdf falls to 1/2 where H is
+	 * acos(2^(-roughness / 8)) from N under PRMan's model (7.53 degrees at
+	 * roughness 0.1), acos(2^(-roughness)) under the RiSpec's (21.09
+	 * degrees). L at twice that angle from V = N.
+	 */
+	static const double hw_exp[2] = { 8, 1 };
+	for (int m = 0; m < 2; m++) {
+		double half = acos(pow(2, -0.1 / hw_exp[m]));
+		float Lh[3] = { (float)sin(2 * half), 0, (float)cos(2 * half) };
+		CHECK_NEAR(sl_specularbrdf(Lh, Nup, V, 0.1f, m ? RS : PR), 0.5, 1e-4);
+	}
 	float Lback[3] = { 0, 0, -1 }, Vside[3] = { 1, 0, 0 };
-	CHECK(sl_specularbrdf(Lback, Nup, Vside, 0.1f) == 0.0f);
-	CHECK(sl_specularbrdf(L, Nup, V, 0.0f) == 1.0f);
+	CHECK(sl_specularbrdf(Lback, Nup, Vside, 0.1f, PR) == 0.0f);
+	CHECK(sl_specularbrdf(Lback, Nup, Vside, 0.1f, RS) == 0.0f);
+	CHECK(sl_specularbrdf(L, Nup, V, 0.0f, PR) == 1.0f);
+	CHECK(sl_specularbrdf(L, Nup, V, 0.0f, RS) == 1.0f);
+
+	/* The option's names. */
+	enum sl_specular_model m;
+	CHECK(sl_specular_model_parse("rispec", &m) && m == RS);
+	CHECK(sl_specular_model_parse("prman", &m) && m == PR);
+	CHECK(!sl_specular_model_parse("blinn", &m) && !sl_specular_model_parse(NULL, &m));
+	CHECK(!strcmp(sl_specular_model_name(RS), "rispec"));
+	CHECK(!strcmp(sl_specular_model_name(PR), "prman"));
 }
 
 static void test_refract_fresnel(void)

@@ -9,7 +9,9 @@
  *   ambient()             = sum of Cl over ambient lights
  *   diffuse(Nf)           = sum of Cl * max(0, Nf . normalize(L))
  *   specular(Nf, V, r)    = sum of Cl * max(0, Nf . H)^(1/r), H = normalize(normalize(L) + V)
- * (diffuse and specular over the lights within 90 degrees of Nf). Light
+ * (diffuse and specular over the lights within 90 degrees of Nf). The test
+ * host asks for that RiSpec specular model; test_plastic_prman checks
+ * PRMan's, the renderer's default, where the exponent is 8/r. Light
  * shaders are run on their own: the test sets Ps and reads Cl and the lit
  * mask. Last, surfaces and light shaders run together through lighthost.h,
  * as the renderer runs them.
@@ -159,6 +161,7 @@ static struct sl_host make_host(struct test_host *h)
 		.texture = host_texture,
 		.environment = host_environment,
 		.shadow = host_shadow,
+		.specular_model = SL_SPECULAR_RISPEC,
 	};
 }
 
@@ -290,13 +293,19 @@ static bool set(struct sl_exec *x, const char *name, float v)
 }
 
 /* Run surface shader @prog over @sc; false if it did not run. */
-static bool run_surface(struct sl_exec *x, const struct scene *sc, struct test_host *th)
+static bool run_surface_host(struct sl_exec *x, const struct scene *sc,
+			     const struct sl_host *host)
 {
-	struct sl_host host = make_host(th);
 	if (!sl_exec_set_grid(x, sc->nu, sc->nv))
 		return false;
 	setup_surface(x, sc);
-	return sl_exec_run(x, &host);
+	return sl_exec_run(x, host);
+}
+
+static bool run_surface(struct sl_exec *x, const struct scene *sc, struct test_host *th)
+{
+	struct sl_host host = make_host(th);
+	return run_surface_host(x, sc, &host);
 }
 
 static void check_color(struct sl_exec *x, enum sl_global g, uint32_t i, double r, double gg,
@@ -410,6 +419,42 @@ static void test_plastic(void)
 	/* At the mirror direction the highlight is the light's colour times Ks. */
 	d = 0.5 * plastic_diffuse[0];
 	check_color(x, SL_GLOBAL_CI, 0, d + 0.5, d * 0.5, d * 0.25, TOL);
+	sl_exec_destroy(x);
+	sl_program_destroy(prog);
+}
+
+/*
+ * plastic under PRMan's specular model (exponent 8 / roughness), the
+ * renderer's default, in the plastic scene with normals tilted by b = 30,
+ * 20 and 25 degrees: Nf . H = cos(30 - b), and at roughness 0.1 the
+ * specular term is cos(30 - b)^80: 1, cos(10)^80 = 0.2938439,
+ * cos(5)^80 = 0.7371198. At roughness 0.8 it is cos(30 - b)^10, the RiSpec
+ * model's highlight at 0.1.
+ */
+static void test_plastic_prman(void)
+{
+	struct sl_program *prog = load("plastic");
+	CHECK(prog != NULL);
+	if (!prog)
+		return;
+	static const double tilt[3] = { 30, 20, 25 };
+	struct sl_exec *x = sl_exec_create(prog, MAXN);
+	struct scene sc = facing_scene(3, tilt);
+	struct test_host th = { .nlights = 1, .lights = { distant(60, 1, 1, 1) } };
+	struct sl_host host = make_host(&th);
+	host.specular_model = SL_SPECULAR_PRMAN;
+	static const float rough[2] = { 0.1f, 0.8f };
+	static const double exponent[2] = { 80, 10 };
+	for (int k = 0; k < 2; k++) {
+		CHECK(set(x, "roughness", rough[k]));
+		CHECK(run_surface_host(x, &sc, &host));
+		for (uint32_t i = 0; i < 3; i++) {
+			double b = tilt[i] * DEG;
+			double d = 0.5 * cos(60 * DEG - b);
+			double sp = 0.5 * pow(cos(30 * DEG - b), exponent[k]);
+			check_color(x, SL_GLOBAL_CI, i, d * 1 + sp, d * 0.5 + sp, d * 0.25 + sp, TOL);
+		}
+	}
 	sl_exec_destroy(x);
 	sl_program_destroy(prog);
 }
@@ -1087,6 +1132,7 @@ int main(void)
 	RUN(test_constant);
 	RUN(test_matte);
 	RUN(test_plastic);
+	RUN(test_plastic_prman);
 	RUN(test_metal);
 	RUN(test_shinymetal);
 	RUN(test_paintedplastic);

@@ -328,11 +328,15 @@ static void quiet_print(void *user, const char *text)
 }
 
 /* Run surface executor @x with @nl lights (the scene's spaces). */
+/* The specular model of run_lit's host (the library runs under both). */
+static enum sl_specular_model lit_model;
+
 static bool run_lit(struct sl_exec *x, struct sl_exec **lights, int nl)
 {
 	struct sl_lighthost lh;
 	sl_lighthost_init(&lh, nl ? lights : NULL, nl);
 	lh.host.print = quiet_print;
+	lh.host.specular_model = lit_model;
 	lh.space_names = space_names;
 	lh.space_mats = (const float (*)[16])space_mats;
 	lh.nspaces = 2;
@@ -715,8 +719,10 @@ static void compare_all_ways(const char *name, struct sl_program *surf, struct l
 	snprintf(label, sizeof(label), "%s, lights dynamic", name);
 	struct dyn_result r = compare_dynamic(label, surf, &pv, NULL, 0, ls->x, ls->n, seed + 1);
 	tally_add(t, &r);
+	/* Under PRMan's highlight, eight times sharper, a surface lit by specular() alone
+	 * (metal) reaches 0.026 on this grid: there the check is only that light arrives. */
 	if (lit)
-		CHECK(r.maxci > 0.05f);
+		CHECK(r.maxci > (lit_model == SL_SPECULAR_RISPEC ? 0.05f : 0.0f));
 	printf("%-46s %2u cached, %2u static, %2u dynamic instructions, max diff %.2e\n", label,
 	       r.ncached, r.nstatic, r.ndynamic, r.maxerr);
 	for (uint32_t k = 0; k < surf->nparams && k < MAXP; k++) {
@@ -771,25 +777,28 @@ static void check_lights_reach(struct light_set *ls)
 	sl_program_destroy(mp);
 }
 
-/* Every surface of shaders/ under every light of shaders/ at once. */
+/* Every surface of shaders/ under every light of shaders/ at once, under each specular model. */
 static void test_dynamic_library(void)
 {
 	struct light_set ls;
 	library_lights(&ls, 77);
 	check_lights_reach(&ls);
 	struct tally t = { 0 };
-	for (size_t k = 0; k < NSURF; k++) {
-		struct sl_program *p = load(surfaces[k]);
+	for (size_t k = 0; k < 2 * NSURF; k++) {
+		lit_model = k < NSURF ? SL_SPECULAR_RISPEC : SL_SPECULAR_PRMAN;
+		const char *name = surfaces[k % NSURF];
+		struct sl_program *p = load(name);
 		CHECK(p != NULL);
 		if (!p)
 			continue;
-		bool lit = strcmp(surfaces[k], "constant") && strcmp(surfaces[k], "defaultsurface");
-		compare_all_ways(surfaces[k], p, &ls, 1000u * (uint32_t)(k + 1), &t, lit);
+		bool lit = strcmp(name, "constant") && strcmp(name, "defaultsurface");
+		compare_all_ways(name, p, &ls, 1000u * (uint32_t)(k % NSURF + 1), &t, lit);
 		sl_program_destroy(p);
 	}
+	lit_model = SL_SPECULAR_PRMAN;
 	printf("library: %d comparisons, %ld values, %ld bit-identical, max diff %.2e (tol %.0e)\n",
 	       t.cases, t.values, t.exact, t.maxerr, DYN_TOL);
-	CHECK(t.cases >= (int)NSURF * 2);
+	CHECK(t.cases >= (int)NSURF * 4);
 	CHECK(t.maxerr <= DYN_TOL);
 	light_set_free(&ls);
 }
