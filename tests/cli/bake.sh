@@ -342,35 +342,8 @@ expect_status 1
 expect_no_crash
 expect_stderr "junk.exr"
 
-# Deforming primitives: a sphere whose radius grows over the shutter and a
-# height field ("Pz") whose heights move.
-cat >"$work/deform.rib" <<'RIB'
-Format 40 30 1
-PixelSamples 8 8
-Shutter 0 1
-Display "deform.exr" "file" "rgba"
-WorldBegin
-  LightSource "distantlight" 1 "from" [1 1 -1] "to" [0 0 0]
-  LightSource "pointlight" 2 "from" [0 2 2] "intensity" 4
-  AttributeBegin
-    Surface "plastic"
-    Translate -0.8 0 6
-    MotionBegin [0 1]
-      Sphere 0.6 -0.6 0.6 360
-      Sphere 1.4 -1.4 1.4 360
-    MotionEnd
-  AttributeEnd
-  AttributeBegin
-    Surface "matte"
-    Translate 0.6 -1 4
-    Scale 1.5 1.5 1
-    MotionBegin [0 1]
-      Patch "bilinear" "Pz" [0 0.5 -0.5 0]
-      Patch "bilinear" "Pz" [0.5 -0.5 0 1]
-    MotionEnd
-  AttributeEnd
-WorldEnd
-RIB
+# Deforming primitives (tests/cli/deform/deform.rib).
+cp "$source_dir/tests/cli/deform/deform.rib" "$work/"
 check_resolve "deforming primitives" deform.rib
 
 finish

@@ -139,37 +139,11 @@ gpu_case lights32 lights32.rib 5.from=1,2,3 33.coneangle=0.5 35.intensity=2
 gpu_case shadows shadows.rib 2.intensity=90 2.lightcolor=1,0.9,0.7
 gpu_case shadows shadows.rib 2.samples=64 2.blur=0.01
 gpu_case shadows shadows.rib 2.from=3.5,6,-2.5 2.coneangle=0.5
-# Deforming primitives (a sphere growing over the shutter, a height field
-# whose heights move), from a RIB of this script's own: baked here, so that
+# Deforming primitives (tests/cli/deform/deform.rib: a sphere growing over
+# the shutter, a height field whose heights move), baked here, so that
 # baked() finds the shot.
 mkdir -p "$work/deforming"
-cat >"$work/deforming/deform.rib" <<'RIB'
-Format 40 30 1
-PixelSamples 8 8
-Shutter 0 1
-Display "deform.exr" "file" "rgba"
-WorldBegin
-  LightSource "distantlight" 1 "from" [1 1 -1] "to" [0 0 0]
-  LightSource "pointlight" 2 "from" [0 2 2] "intensity" 4
-  AttributeBegin
-    Surface "plastic"
-    Translate -0.8 0 6
-    MotionBegin [0 1]
-      Sphere 0.6 -0.6 0.6 360
-      Sphere 1.4 -1.4 1.4 360
-    MotionEnd
-  AttributeEnd
-  AttributeBegin
-    Surface "matte"
-    Translate 0.6 -1 4
-    Scale 1.5 1.5 1
-    MotionBegin [0 1]
-      Patch "bilinear" "Pz" [0 0.5 -0.5 0]
-      Patch "bilinear" "Pz" [0.5 -0.5 0 1]
-    MotionEnd
-  AttributeEnd
-WorldEnd
-RIB
+cp "$source_dir/tests/cli/deform/deform.rib" "$work/deforming/"
 run "deforming: bake" bash -c "cd '$work/deforming' && '$relight' bake -q deform.rib"
 expect_status 0
 gpu_case deforming deform.rib 1.intensity=0.5 2.from=-1,2,1 2.intensity=6

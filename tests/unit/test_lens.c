@@ -16,6 +16,7 @@
 #include "ri.h"
 #include "texture.h"
 #include "config.h"
+#include "render_scene.h"
 #include "test.h"
 
 #include <math.h>
@@ -23,60 +24,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
-
-static char tmpdir[256];
-
-static const char *tmp_path(const char *name)
-{
-	static char buf[4][512];
-	static int k;
-	char *b = buf[k++ & 3];
-	snprintf(b, 512, "%s/%s", tmpdir, name);
-	return b;
-}
-
-static bool on_frame(void *user, const struct reyes_scene *scene)
-{
-	struct reyes_render_opts ro = { .threads = 2 };
-	(void)user;
-	return reyes_render(scene, &ro, NULL);
-}
-
-/* Write @rib to a file and render it; the image named @out is read into @im. */
-static bool render(const char *rib, const char *out, struct reyes_image *im)
-{
-	const char *path = tmp_path("scene.rib");
-	FILE *f = fopen(path, "w");
-	if (!f)
-		return false;
-	fputs(rib, f);
-	fclose(f);
-	struct reyes_ri_opts o = {
-		.default_shader_path = RELIGHT_SOURCE_SHADER_DIR,
-		.frame = on_frame,
-	};
-	int nerr = 0;
-	if (chdir(tmpdir) != 0)
-		return false;
-	if (!reyes_ri_read(path, &o, &nerr) || nerr) {
-		fprintf(stderr, "render failed (%d errors)\n", nerr);
-		return false;
-	}
-	return reyes_image_read_exr(tmp_path(out), im, NULL);
-}
-
-static int channel(const struct reyes_image *im, const char *name)
-{
-	for (uint32_t c = 0; c < im->nchannels; c++)
-		if (!strcmp(im->channel_names[c], name))
-			return (int)c;
-	return -1;
-}
-
-static float px(const struct reyes_image *im, int c, uint32_t x, uint32_t y)
-{
-	return im->data[((size_t)y * im->width + x) * im->nchannels + (size_t)c];
-}
 
 /*
  * A small disk of radius 0.25 at depth 4, facing the camera, against black;
@@ -356,18 +303,12 @@ done:
 
 int main(void)
 {
-	snprintf(tmpdir, sizeof(tmpdir), "/tmp/relight-lens-XXXXXX");
-	if (!mkdtemp(tmpdir)) {
-		perror("mkdtemp");
+	if (!scene_dir_create("relight-lens"))
 		return 1;
-	}
 	RUN(test_circle_of_confusion);
 	RUN(test_in_focus);
 	RUN(test_camera_motion_ramp);
 	RUN(test_camera_and_object_motion);
-	char cmd[600];
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", tmpdir);
-	if (system(cmd) != 0)
-		fprintf(stderr, "could not remove %s\n", tmpdir);
+	scene_dir_remove();
 	return test_finish();
 }

@@ -7,6 +7,7 @@
 #include "ri.h"
 #include "texture.h"
 #include "config.h"
+#include "render_scene.h"
 #include "test.h"
 
 #include <math.h>
@@ -14,60 +15,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
-
-static char tmpdir[256];
-
-static const char *tmp_path(const char *name)
-{
-	static char buf[4][512];
-	static int k;
-	char *b = buf[k++ & 3];
-	snprintf(b, 512, "%s/%s", tmpdir, name);
-	return b;
-}
-
-static bool on_frame(void *user, const struct reyes_scene *scene)
-{
-	struct reyes_render_opts ro = { .threads = 2 };
-	(void)user;
-	return reyes_render(scene, &ro, NULL);
-}
-
-/* Write @rib to a file, render it; the image named @out is read into @im. */
-static bool render(const char *rib, const char *out, struct reyes_image *im)
-{
-	const char *path = tmp_path("scene.rib");
-	FILE *f = fopen(path, "w");
-	if (!f)
-		return false;
-	fputs(rib, f);
-	fclose(f);
-	struct reyes_ri_opts o = {
-		.default_shader_path = RELIGHT_SOURCE_SHADER_DIR,
-		.frame = on_frame,
-	};
-	int nerr = 0;
-	if (chdir(tmpdir) != 0)
-		return false;
-	if (!reyes_ri_read(path, &o, &nerr)) {
-		fprintf(stderr, "render failed (%d errors)\n", nerr);
-		return false;
-	}
-	return reyes_image_read_exr(tmp_path(out), im, NULL);
-}
-
-static int channel(const struct reyes_image *im, const char *name)
-{
-	for (uint32_t c = 0; c < im->nchannels; c++)
-		if (!strcmp(im->channel_names[c], name))
-			return (int)c;
-	return -1;
-}
-
-static float px(const struct reyes_image *im, int c, uint32_t x, uint32_t y)
-{
-	return im->data[((size_t)y * im->width + x) * im->nchannels + (size_t)c];
-}
 
 /*
  * A Lambertian (matte, Kd 1) plane z = 4 facing the camera, lit by a point
@@ -116,18 +63,6 @@ static void test_lambert_plane(void)
 	printf("lambert plane: worst relative error %.4f%% (tolerance 1%%)\n", worst * 100);
 	CHECK(worst <= 0.01);
 	reyes_image_finish(&im);
-}
-
-/* Area of the disk (cx, cy, rad) inside pixel (x, y), by 256x256 subsamples. */
-static double disk_pixel(double cx, double cy, double rad, uint32_t x, uint32_t y)
-{
-	int n = 256, in = 0;
-	for (int j = 0; j < n; j++)
-		for (int i = 0; i < n; i++) {
-			double sx = x + (i + 0.5) / n - cx, sy = y + (j + 0.5) / n - cy;
-			in += sx * sx + sy * sy <= rad * rad;
-		}
-	return (double)in / (n * n);
 }
 
 /*
@@ -1222,11 +1157,8 @@ static void test_environment_render(void)
 
 int main(void)
 {
-	snprintf(tmpdir, sizeof(tmpdir), "/tmp/relight-render-XXXXXX");
-	if (!mkdtemp(tmpdir)) {
-		perror("mkdtemp");
+	if (!scene_dir_create("relight-render"))
 		return 1;
-	}
 	RUN(test_lambert_plane);
 	RUN(test_sphere_coverage);
 	RUN(test_motion_coverage);
@@ -1241,10 +1173,6 @@ int main(void)
 	RUN(test_height_field);
 	RUN(test_periodic_patch_mesh);
 	RUN(test_environment_render);
-	if (getenv("RELIGHT_KEEP_TMP")) return test_finish();
-	char cmd[600];
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", tmpdir);
-	if (system(cmd) != 0)
-		fprintf(stderr, "could not remove %s\n", tmpdir);
+	scene_dir_remove();
 	return test_finish();
 }

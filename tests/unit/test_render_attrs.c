@@ -10,6 +10,7 @@
 #include "ri.h"
 #include "texture.h"
 #include "config.h"
+#include "render_scene.h"
 #include "test.h"
 
 #include <math.h>
@@ -17,71 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
-
-static char tmpdir[256];
-
-static const char *tmp_path(const char *name)
-{
-	static char buf[4][512];
-	static int k;
-	char *b = buf[k++ & 3];
-	snprintf(b, 512, "%s/%s", tmpdir, name);
-	return b;
-}
-
-static bool on_frame(void *user, const struct reyes_scene *scene)
-{
-	struct reyes_render_opts ro = { .threads = 2, .diag = user };
-	return reyes_render(scene, &ro, NULL);
-}
-
-/* The diagnostics of the last render; a failure is printed unless expected. */
-static char diag_text[8192];
-static bool failure_expected;
-
-/* Write @rib to a file, render it; the image named @out is read into @im. */
-static bool render(const char *rib, const char *out, struct reyes_image *im)
-{
-	const char *path = tmp_path("scene.rib");
-	FILE *f = fopen(path, "w");
-	if (!f)
-		return false;
-	fputs(rib, f);
-	fclose(f);
-	char *dbuf = NULL;
-	size_t dlen = 0;
-	FILE *diag = open_memstream(&dbuf, &dlen);
-	struct reyes_ri_opts o = {
-		.default_shader_path = RELIGHT_SOURCE_SHADER_DIR,
-		.frame = on_frame,
-		.user = diag,
-		.diag = diag,
-	};
-	int nerr = 0;
-	bool ok = chdir(tmpdir) == 0 && reyes_ri_read(path, &o, &nerr);
-	fclose(diag);
-	snprintf(diag_text, sizeof(diag_text), "%s", dbuf ? dbuf : "");
-	free(dbuf);
-	if (!ok) {
-		if (!failure_expected)
-			fprintf(stderr, "render failed (%d errors):\n%s", nerr, diag_text);
-		return false;
-	}
-	return reyes_image_read_exr(tmp_path(out), im, NULL);
-}
-
-static int channel(const struct reyes_image *im, const char *name)
-{
-	for (uint32_t c = 0; c < im->nchannels; c++)
-		if (!strcmp(im->channel_names[c], name))
-			return (int)c;
-	return -1;
-}
-
-static float px(const struct reyes_image *im, int c, uint32_t x, uint32_t y)
-{
-	return im->data[((size_t)y * im->width + x) * im->nchannels + (size_t)c];
-}
 
 /* The four channels R G B A of @im into @ch; false (checked) when one is missing. */
 static bool rgba_channels(const struct reyes_image *im, int ch[4])
@@ -246,18 +182,6 @@ static void test_texture_coordinates(void)
 }
 
 /* ---- Matte ------------------------------------------------------------------- */
-
-/* Area of the disk (cx, cy, rad) inside pixel (x, y), by 256x256 subsamples. */
-static double disk_pixel(double cx, double cy, double rad, uint32_t x, uint32_t y)
-{
-	int n = 256, in = 0;
-	for (int j = 0; j < n; j++)
-		for (int i = 0; i < n; i++) {
-			double sx = x + (i + 0.5) / n - cx, sy = y + (j + 0.5) / n - cy;
-			in += sx * sx + sy * sy <= rad * rad;
-		}
-	return (double)in / (n * n);
-}
 
 /*
  * A red-shaded Disk made a matte object, in front of a white plane that
@@ -648,22 +572,14 @@ static void test_bad_requests(void)
 
 int main(void)
 {
-	snprintf(tmpdir, sizeof(tmpdir), "/tmp/relight-attrs-XXXXXX");
-	if (!mkdtemp(tmpdir)) {
-		perror("mkdtemp");
+	if (!scene_dir_create("relight-attrs"))
 		return 1;
-	}
 	RUN(test_texture_coordinates);
 	RUN(test_matte);
 	RUN(test_detail);
 	RUN(test_detail_measure);
 	RUN(test_geometric_requests);
 	RUN(test_bad_requests);
-	if (getenv("RELIGHT_KEEP_TMP"))
-		return test_finish();
-	char cmd[600];
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", tmpdir);
-	if (system(cmd) != 0)
-		fprintf(stderr, "could not remove %s\n", tmpdir);
+	scene_dir_remove();
 	return test_finish();
 }
