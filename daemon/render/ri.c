@@ -131,8 +131,11 @@ void reyes_ri_warn(struct ri *ri, struct rib_loc loc, const char *fmt, ...)
 	va_end(ap);
 }
 
-/* Passes the reader's pending messages on; its errors count against the frame. */
-static void forward_reader_diag(struct ri *ri)
+/*
+ * Passes the reader's pending messages on; its errors count against the
+ * frame, or with @prim against the primitive they dropped.
+ */
+static void forward_reader_diag_as(struct ri *ri, bool prim)
 {
 	if (!ri->rdiag)
 		return;
@@ -148,13 +151,21 @@ static void forward_reader_diag(struct ri *ri)
 		size_t len = nl ? (size_t)(nl - p) : (size_t)(end - p);
 		for (size_t i = 0; i + sizeof(tag) - 1 <= len; i++)
 			if (memcmp(p + i, tag, sizeof(tag) - 1) == 0) {
-				ri->frame_errors++;
+				if (prim)
+					ri->reader_prim++;
+				else
+					ri->frame_errors++;
 				break;
 			}
 		p += len + 1;
 	}
 	rewind(ri->rdiag);
 	fflush(ri->rdiag);
+}
+
+static void forward_reader_diag(struct ri *ri)
+{
+	forward_reader_diag_as(ri, false);
 }
 
 /* The loc with its file name interned (the reader's name dies with its read). */
@@ -1927,10 +1938,16 @@ static bool read_file(struct ri *ri, const char *path, const struct stat *st)
 	rl_vec_push(ri->files, f);
 	struct rib_reader_opts ro = reader_opts(ri);
 	int n = 0;
+	/* The errors of this file's reader that dropped primitives, apart from
+	   those of the archives it reads. */
+	int outer = ri->reader_prim;
+	ri->reader_prim = 0;
 	bool ok = rib_read_file(path, &ro, on_request, ri, &n);
 	forward_reader_diag(ri);
-	ri->reader_errors += n;
-	if (n && ri->nerrors + ri->reader_errors >= ri->max_errors)
+	ri->reader_errors += n - ri->reader_prim;
+	ri->reader_prim_total += ri->reader_prim;
+	ri->reader_prim = outer;
+	if (n && ri->nerrors - ri->prim_errors + ri->reader_errors >= ri->max_errors)
 		ri->stop = true;
 	if (!ri->stop)
 		close_file_blocks(ri);
@@ -2273,9 +2290,17 @@ static bool refused(const char *name)
 static bool on_request(void *user, const struct rib_request *r)
 {
 	struct ri *ri = user;
-	forward_reader_diag(ri);
+	forward_reader_diag_as(ri, r->known == RIB_MALFORMED);
 	if (ri->stop)
 		return false;
+	if (r->known == RIB_MALFORMED) {
+		/* its error is reported: the primitive is dropped, and a deforming
+		   one goes with the sample it lacks */
+		ri->dropped++;
+		if (ri->motion.active)
+			ri->motion.bad = true;
+		return true;
+	}
 	if (ri->files.len)
 		ri->files.data[ri->files.len - 1].last = reyes_ri_keep_loc(ri, r->loc);
 	const struct handler *h = NULL;
@@ -2393,13 +2418,13 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 				     e->light);
 	}
 
-	int total = ri->nerrors + ri->reader_errors;
+	int total = ri->nerrors + ri->reader_errors + ri->reader_prim_total;
 	if (nerrors)
 		*nerrors = total;
 	if (opts->counts)
 		*opts->counts = (struct reyes_ri_counts){
 			.errors = total,
-			.fatal = total - ri->prim_errors,
+			.fatal = total - ri->prim_errors - ri->reader_prim_total,
 			.dropped = ri->dropped,
 			.warnings = ri->warnings,
 			.repeats = ri->repeats,

@@ -245,6 +245,8 @@ struct ri {
 	int repeats;              /* diagnostics not printed again at the same place */
 	int dropped;              /* primitives dropped for their errors */
 	int prim_errors;          /* errors of those primitives (in nerrors) */
+	int reader_prim;          /* the reader's errors that dropped a primitive, this file */
+	int reader_prim_total;    /* the same, every file read (not in reader_errors) */
 	bool in_prim;             /* a primitive's request is being built */
 	bool prim_failed;         /* ... and it had an error */
 	struct strmap seen;       /* 'w' or 'e' + "FILE:LINE: message" printed */

@@ -47,6 +47,7 @@ enum {
 	TAKES_PARAMS = 1 << 0,  /* a parameter list follows the positional arguments */
 	BRACKET_OK = 1 << 1,    /* the numbers may also be written as one [ array ] */
 	NONE_OK = 1 << 2,       /* the numbers may also be left out altogether */
+	PRIMITIVE = 1 << 3,     /* a geometric primitive: an error in it drops it alone */
 };
 
 /*
@@ -138,19 +139,19 @@ static const struct reqdef reqdefs[] = {
 	{"MakeCubeFaceEnvironment", "px:s nx:s py:s ny:s pz:s nz:s texturename:s fov:n filter:s "
 	 "swidth:n twidth:n", TAKES_PARAMS},
 	/* geometry */
-	{"Sphere", "radius:n zmin:n zmax:n thetamax:n", TAKES_PARAMS},
-	{"Cylinder", "radius:n zmin:n zmax:n thetamax:n", TAKES_PARAMS},
-	{"Cone", "height:n radius:n thetamax:n", TAKES_PARAMS},
-	{"Disk", "height:n radius:n thetamax:n", TAKES_PARAMS},
-	{"Hyperboloid", "x1:n y1:n z1:n x2:n y2:n z2:n thetamax:n", TAKES_PARAMS},
-	{"Paraboloid", "rmax:n zmin:n zmax:n thetamax:n", TAKES_PARAMS},
-	{"Torus", "majorradius:n minorradius:n phimin:n phimax:n thetamax:n", TAKES_PARAMS},
-	{"Polygon", "", TAKES_PARAMS},
-	{"GeneralPolygon", "nvertices:I", TAKES_PARAMS},
-	{"PointsPolygons", "nvertices:I vertices:I", TAKES_PARAMS},
-	{"PointsGeneralPolygons", "nloops:I nvertices:I vertices:I", TAKES_PARAMS},
-	{"Patch", "type:s", TAKES_PARAMS},
-	{"PatchMesh", "type:s nu:i uwrap:s nv:i vwrap:s", TAKES_PARAMS},
+	{"Sphere", "radius:n zmin:n zmax:n thetamax:n", TAKES_PARAMS | PRIMITIVE},
+	{"Cylinder", "radius:n zmin:n zmax:n thetamax:n", TAKES_PARAMS | PRIMITIVE},
+	{"Cone", "height:n radius:n thetamax:n", TAKES_PARAMS | PRIMITIVE},
+	{"Disk", "height:n radius:n thetamax:n", TAKES_PARAMS | PRIMITIVE},
+	{"Hyperboloid", "x1:n y1:n z1:n x2:n y2:n z2:n thetamax:n", TAKES_PARAMS | PRIMITIVE},
+	{"Paraboloid", "rmax:n zmin:n zmax:n thetamax:n", TAKES_PARAMS | PRIMITIVE},
+	{"Torus", "majorradius:n minorradius:n phimin:n phimax:n thetamax:n", TAKES_PARAMS | PRIMITIVE},
+	{"Polygon", "", TAKES_PARAMS | PRIMITIVE},
+	{"GeneralPolygon", "nvertices:I", TAKES_PARAMS | PRIMITIVE},
+	{"PointsPolygons", "nvertices:I vertices:I", TAKES_PARAMS | PRIMITIVE},
+	{"PointsGeneralPolygons", "nloops:I nvertices:I vertices:I", TAKES_PARAMS | PRIMITIVE},
+	{"Patch", "type:s", TAKES_PARAMS | PRIMITIVE},
+	{"PatchMesh", "type:s nu:i uwrap:s nv:i vwrap:s", TAKES_PARAMS | PRIMITIVE},
 };
 
 /*
@@ -240,6 +241,8 @@ struct rib_reader {
 	void *user;
 
 	int nerrors;
+	int prim_errors;         /* of nerrors, those inside primitives (not limited) */
+	bool in_primitive;       /* reading a PRIMITIVE request's arguments */
 	bool stop;               /* too many errors, or the handler said stop */
 	bool handler_stopped;
 	bool skipping;           /* after an error: lexical errors are not reported */
@@ -286,14 +289,17 @@ static struct rib_loc loc_at(const struct rib_reader *r, uint32_t line)
 
 /*
  * Reports an error unless the read already stopped or its input failed;
- * stops after max_errors.
+ * stops after max_errors (errors inside a primitive, which drop only it, are
+ * not counted).
  */
 static void report(struct rib_reader *r, uint32_t line, const char *fmt, va_list ap)
 {
 	if (r->stop || r->src_failed)
 		return;
 	vreport(r->diag, loc_at(r, line), "error", fmt, ap);
-	if (++r->nerrors >= r->max_errors) {
+	r->nerrors++;
+	r->prim_errors += r->in_primitive;
+	if (r->nerrors - r->prim_errors >= r->max_errors) {
 		r->stop = true;
 		fprintf(r->diag ? r->diag : stderr, "%s: note: too many errors, stopping\n",
 			r->file);
@@ -1343,6 +1349,26 @@ static void pass_unhandled(struct rib_reader *r)
 	}
 }
 
+/*
+ * A primitive whose arguments had an error (reported, and skipped): it goes
+ * to the handler by name, so that the handler drops what it would have made
+ * (a sample of a motion block takes the whole primitive with it).
+ */
+static void pass_malformed(struct rib_reader *r, const struct reqdef *def)
+{
+	if (!r->fn || r->src_failed || r->stop)
+		return;
+	struct rib_request req = {
+		.name = def->name,
+		.loc = loc_at(r, r->req_line),
+		.known = RIB_MALFORMED,
+	};
+	if (!r->fn(r->user, &req)) {
+		r->handler_stopped = true;
+		r->stop = true;
+	}
+}
+
 /* file := { request } */
 static void read_all(struct rib_reader *r)
 {
@@ -1364,8 +1390,13 @@ static void read_all(struct rib_reader *r)
 			pass_unhandled(r);
 			continue;
 		}
-		if (!parse_request(r, def))
+		r->in_primitive = def->flags & PRIMITIVE;
+		if (!parse_request(r, def)) {
 			skip_to_request(r);
+			if (r->in_primitive)
+				pass_malformed(r, def);
+		}
+		r->in_primitive = false;
 	}
 }
 

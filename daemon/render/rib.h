@@ -45,6 +45,7 @@ enum rib_known {
 	RIB_KNOWN,             /* a request of the table, its arguments checked */
 	RIB_UNSUPPORTED,       /* a request of the RenderMan Interface the table lacks */
 	RIB_UNKNOWN,           /* any other name */
+	RIB_MALFORMED,         /* a primitive of the table whose arguments were in error */
 };
 
 struct rib_request {
@@ -59,7 +60,11 @@ struct rib_request {
 	 * RIB_UNSUPPORTED and RIB_UNKNOWN requests come by name only: their
 	 * arguments were read as tokens (lexical errors reported) and skipped,
 	 * nargs and nparams are 0. @near: for RIB_UNKNOWN, the known request
-	 * whose name is closest (a misspelling), or NULL.
+	 * whose name is closest (a misspelling), or NULL. RIB_MALFORMED: a
+	 * geometric primitive whose arguments or parameter list had an error
+	 * (reported), passed by name only so that the handler can drop what it
+	 * stood for (a motion block's sample) and go on; such errors do not count
+	 * towards max_errors.
 	 */
 	enum rib_known known;
 	const char *near;

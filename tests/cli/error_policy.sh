@@ -94,6 +94,41 @@ expect_stderr '^wrote polys.exr$'
 expect_stderr '^relight render: 1 of 1 frame rendered, 0 warnings \(0 repeats not shown\), 1 error, 1 primitive dropped$'
 expect_true "the others did not render as without it" identical good.exr polys.exr
 
+# Primitives whose arguments the reader refuses (too few numbers, an array
+# for a number, a motion sample short of its numbers, a parameter list cut
+# off): each dropped, and the rest renders as without them.
+cat >"$work/args.rib" <<'RIB'
+Format 40 30 1
+PixelSamples 2 2
+Projection "perspective" "fov" 40
+Display "args.exr" "file" "rgba"
+WorldBegin
+  Translate 0 0 5
+  Surface "constant"
+  Polygon "P" [-2 -1 0  -1 -1 0  -1 1 0  -2 1 0]
+  Sphere 1 -1
+  Cone 1 [1 2] 3
+  MotionBegin [0 1]
+    Sphere 0.5 -0.5 0.5 360
+    Sphere 0.5 -0.5
+  MotionEnd
+  Polygon "P" [1 -1 0  2 -1 0  2 1 0  1 1 0]
+  Polygon "P" [-0.5 -1 0  0.5 -1 0
+WorldEnd
+RIB
+sed -e '9,14d' -e '16d' -e 's/args.exr/args_good.exr/' "$work/args.rib" >"$work/args_good.rib"
+run "good primitives" bash -c "cd '$work' && '$relight' render -q args_good.rib"
+expect_status 0
+run "malformed arguments" bash -c "cd '$work' && '$relight' render args.rib"
+expect_no_crash
+expect_status 1
+expect_stderr '^args.rib:9: error: Sphere expects 4 numbers before its parameter list, got 2$'
+expect_stderr '^args.rib:10: error: Cone expects 3 numbers'
+expect_stderr '^args.rib:13: error: Sphere expects 4 numbers before its parameter list, got 2$'
+expect_stderr '^args.rib:17: error: .*inside an array'
+expect_stderr '^relight render: 1 of 1 frame rendered, 0 warnings \(0 repeats not shown\), 4 errors, 4 primitives dropped$'
+expect_true "the others did not render as without them" identical args_good.exr args.exr
+
 # ---- one line per cause and place: an archive read 10000 times ----
 mkdir -p "$work/loop"
 printf 'Atmosphere "fog"\nSurface "plastic" "Kdd" 1\n' >"$work/loop/fog.rib"

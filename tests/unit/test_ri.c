@@ -1318,10 +1318,14 @@ static void test_errors(void)
 			"FrameBegin 2\nWorldBegin\nWorldEnd\nFrameEnd\n", NULL, NULL, &n));
 	CHECK(frames == 1 && n == 1);
 
-	/* So is a frame with a syntax error the reader found. */
-	CHECK(!run_opts("WorldBegin\nSphere 1 -1\nWorldEnd\n", NULL, NULL, &n));
+	/* So is a frame with a syntax error the reader found... */
+	CHECK(!run_opts("WorldBegin\nTranslate 1 2\nWorldEnd\n", NULL, NULL, &n));
 	CHECK(frames == 0 && n == 1);
 	CHECK_DIAG(test_fmt("%s:2: error: ", rib_path));
+	/* ... unless it is in a primitive's arguments: that primitive is dropped. */
+	CHECK(!run_opts("WorldBegin\nSphere 1 -1\nSphere 1 -1 1 360\nWorldEnd\n", NULL, NULL, &n));
+	CHECK(frames == 1 && n == 1);
+	CHECK_DIAG(test_fmt("%s:2: error: Sphere expects 4 numbers", rib_path));
 
 	/* MakeTexture's failures are reported at its line. */
 	CHECK(!run("MakeTexture \"missing.exr\" \"out.tex\" \"periodic\" \"clamp\" \"box\" 1 1\n",
