@@ -1406,10 +1406,11 @@ bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opt
 	rib_report(&j, 0.0, "reading");
 	bool ok = reyes_ri_read(rib, &ri, NULL);
 	reyes_shader_cache_destroy(j.shaders);
-	if (verbose && (counts.warnings || counts.errors))
+	int warnings = counts.warnings + (int)reyes_render_warnings();
+	if (verbose && (warnings || counts.errors))
 		fprintf(j.diag, "%s: %d warning%s (%d repeat%s not shown), %d error%s, %d "
-			"primitive%s dropped\n", rib, counts.warnings,
-			counts.warnings == 1 ? "" : "s", counts.repeats,
+			"primitive%s dropped\n", rib, warnings,
+			warnings == 1 ? "" : "s", counts.repeats,
 			counts.repeats == 1 ? "" : "s", counts.errors, counts.errors == 1 ? "" : "s",
 			counts.dropped, counts.dropped == 1 ? "" : "s");
 	if (ok && !j.baked) {

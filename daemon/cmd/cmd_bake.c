@@ -270,6 +270,11 @@ int cmd_bake(int argc, char **argv)
 			"under --strict\n", (unsigned long long)shading, shading == 1 ? "" : "s");
 		ok = false;
 	}
+	if (ok && job.bo.strict && reyes_render_warnings()) {
+		fprintf(stderr, "relight bake: error: the renderer left something out (its "
+			"warning above): an error under --strict\n");
+		ok = false;
+	}
 	if (!ok)
 		rc = CMD_FAILED;
 	free(dyn);

@@ -540,7 +540,8 @@ static void summary(const struct render_job *j, const struct reyes_ri_counts *c)
 {
 	uint64_t shading, shading_repeats;
 	sl_exec_warning_counts(&shading, &shading_repeats);
-	unsigned long long warnings = (unsigned long long)(c->warnings + j->warnings) + shading;
+	unsigned long long warnings = (unsigned long long)(c->warnings + j->warnings) + shading +
+				      reyes_render_warnings();
 	unsigned long long repeats = (unsigned long long)c->repeats + shading_repeats;
 	fprintf(stderr, "relight render: %u of %u frame%s rendered, %llu warning%s (%llu repeat%s "
 		"not shown), %d error%s", j->rendered, c->frames, c->frames == 1 ? "" : "s",
@@ -744,6 +745,11 @@ int cmd_render(int argc, char **argv)
 	if (job.strict && shading) {
 		fprintf(stderr, "relight render: error: the shaders warned %llu time%s: an error "
 			"under --strict\n", (unsigned long long)shading, shading == 1 ? "" : "s");
+		ok = false;
+	}
+	if (job.strict && reyes_render_warnings()) {
+		fprintf(stderr, "relight render: error: the renderer left something out (its "
+			"warning above): an error under --strict\n");
 		ok = false;
 	}
 	if (!job.quiet)

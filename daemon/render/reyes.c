@@ -1743,6 +1743,23 @@ static bool frame_fits(struct render *r, const struct reyes_hider_opts *ho)
 	return true;
 }
 
+/* The warnings of every render of the process (reyes_render_warnings). */
+static atomic_uint_fast64_t render_warnings;
+
+uint64_t reyes_render_warnings(void)
+{
+	return (uint64_t)atomic_load(&render_warnings);
+}
+
+/* Pieces that cross the eye plane where a surface passes through the eye
+   cannot be projected: they are left out, and said so. */
+static void eye_plane_warning(struct render *r)
+{
+	fprintf(r->diag, "relight: warning: %llu pieces crossing the eye plane were dropped\n",
+		(unsigned long long)r->dropped);
+	atomic_fetch_add(&render_warnings, 1);
+}
+
 bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opts *opts,
 		  struct reyes_stats *stats)
 {
@@ -1837,8 +1854,7 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	free(r.row_points);
 	r.row_points = NULL;
 	if (r.dropped)
-		fprintf(r.diag, "relight: warning: %llu pieces crossing the eye plane were "
-			"dropped\n", (unsigned long long)r.dropped);
+		eye_plane_warning(&r);
 
 	/* images and threads */
 	size_t npix = (size_t)so->xres * so->yres;
@@ -2037,8 +2053,7 @@ bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *o
 	}
 	free(pieces);
 	if (r.dropped)
-		fprintf(r.diag, "relight: warning: %llu pieces crossing the eye plane were "
-			"dropped\n", (unsigned long long)r.dropped);
+		eye_plane_warning(&r);
 	for (size_t k = 0; k < t.nexecs; k++)
 		sl_exec_destroy(t.execs[k].x);
 	free(t.execs);

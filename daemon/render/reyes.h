@@ -80,6 +80,12 @@ struct reyes_stats {
 };
 
 /**
+ * The warnings renders of this process printed about what they left out
+ * (pieces dropped at the eye plane), for a run's summary and --strict.
+ */
+uint64_t reyes_render_warnings(void);
+
+/**
  * Render @scene's frame and write its displays. False on failure (reported
  * on opts->diag). @stats may be NULL.
  */

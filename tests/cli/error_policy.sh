@@ -233,6 +233,31 @@ expect_stderr '^polys.rib: 0 warnings \(0 repeats not shown\), 1 error, 1 primit
 checks=$((checks + 1))
 [ -s "$work/polys.shot.exr" ] || fail "the rest was not baked"
 
+# ---- the renderer's own warnings: counted, and errors under --strict ----
+# A polygon through the eye: the pieces of it that cross the eye plane there
+# cannot be projected and are left out, with a warning.
+cat >"$work/eye.rib" <<'RIB'
+Format 32 24 1
+Display "eye.exr" "file" "rgba"
+Projection "perspective" "fov" 60
+WorldBegin
+  Surface "constant"
+  Polygon "P" [-1 -1 -1  1 -1 -1  1 1 1  -1 1 1]
+  Sphere 1 -1 1 360
+WorldEnd
+RIB
+run "eye plane" bash -c "cd '$work' && '$relight' render eye.rib"
+expect_no_crash
+expect_status 0
+expect_stderr '^relight: warning: [0-9]+ pieces crossing the eye plane were dropped$'
+expect_stderr '^relight render: 1 of 1 frame rendered, 1 warning \(0 repeats not shown\), 0 errors$'
+run "eye plane, --strict" bash -c "cd '$work' && '$relight' render --strict eye.rib"
+expect_status 1
+expect_stderr 'an error under --strict$'
+run "eye plane, bake --strict" bash -c "cd '$work' && '$relight' bake --strict -o eye.shot.exr eye.rib"
+expect_status 1
+expect_stderr 'an error under --strict$'
+
 # ---- documented ----
 run "render --help" "$relight" render --help
 expect_stdout '--strict'
