@@ -28,8 +28,6 @@
 #define CONE_COST 20u
 /* Grids bigger than this are refused (register storage grows with them). */
 #define MAX_POINTS (1u << 24)
-/* Longest array register accepted. */
-#define MAX_ARRAY (1 << 20)
 /* One LOOP may go round this often in one run before the run fails. */
 #define MAX_LOOP_ITERS 10000000u
 #define NONE UINT32_MAX
@@ -81,7 +79,7 @@ struct sl_exec_private {
 };
 
 /* Components per global variable (all are floats or triples). */
-static const uint8_t global_ncomp[SL_GLOBAL_COUNT] = {
+const uint8_t sl_exec_global_ncomp[SL_GLOBAL_COUNT] = {
 	[SL_GLOBAL_P] = 3, [SL_GLOBAL_N] = 3, [SL_GLOBAL_NG] = 3, [SL_GLOBAL_I] = 3,
 	[SL_GLOBAL_E] = 3, [SL_GLOBAL_CS] = 3, [SL_GLOBAL_OS] = 3, [SL_GLOBAL_CI] = 3,
 	[SL_GLOBAL_OI] = 3, [SL_GLOBAL_S] = 1, [SL_GLOBAL_T] = 1, [SL_GLOBAL_U] = 1,
@@ -94,7 +92,7 @@ static const uint8_t global_ncomp[SL_GLOBAL_COUNT] = {
 /* ------------------------------------------------------------------------ */
 /* Small helpers                                                             */
 
-static const char *prog_label(const struct sl_program *prog)
+const char *sl_exec_label(const struct sl_program *prog)
 {
 	if (prog->source_path)
 		return prog->source_path;
@@ -102,7 +100,7 @@ static const char *prog_label(const struct sl_program *prog)
 }
 
 /* Floats (or string pointers) per point of register @r. */
-static uint32_t reg_total(const struct sl_reg *r)
+uint32_t sl_exec_reg_total(const struct sl_reg *r)
 {
 	uint32_t nc = r->type == SL_TYPE_STRING ? 1 : (uint32_t)sl_reg_ncomp(r);
 	return nc * (r->arraylen > 0 ? (uint32_t)r->arraylen : 1);
@@ -268,13 +266,13 @@ static void report(struct sl_exec *x, const struct sl_insn *in, const char *what
 	char line[1024];
 	int n;
 	if (in) {
-		const char *file = prog_label(prog);
+		const char *file = sl_exec_label(prog);
 		if (prog->files && in->loc.file < prog->nfiles && prog->files[in->loc.file])
 			file = prog->files[in->loc.file];
 		n = snprintf(line, sizeof(line), "%s:%u:%u: %s: ", file, in->loc.line, in->loc.col,
 			     what);
 	} else {
-		n = snprintf(line, sizeof(line), "%s: %s: ", prog_label(prog), what);
+		n = snprintf(line, sizeof(line), "%s: %s: ", sl_exec_label(prog), what);
 	}
 	if (n < 0)
 		return;
@@ -372,409 +370,6 @@ const char *sl_exec_strdup(struct sl_exec *x, const char *s)
 }
 
 /* ------------------------------------------------------------------------ */
-/* Program checks                                                            */
-
-static bool reg_ok(const struct sl_program *prog, int32_t r)
-{
-	return r >= 0 && (uint32_t)r < prog->nregs;
-}
-
-static const struct sl_reg *creg(const struct sl_program *prog, int32_t r)
-{
-	return &prog->regs[r];
-}
-
-static bool is_str(const struct sl_program *prog, int32_t r)
-{
-	return creg(prog, r)->type == SL_TYPE_STRING;
-}
-
-static int ncomp_of(const struct sl_program *prog, int32_t r)
-{
-	return sl_reg_ncomp(creg(prog, r));
-}
-
-/* A numeric non-array register. */
-static bool is_num(const struct sl_program *prog, int32_t r)
-{
-	return !is_str(prog, r) && creg(prog, r)->arraylen == 0;
-}
-
-static bool is_scalar(const struct sl_program *prog, int32_t r)
-{
-	return is_num(prog, r) && ncomp_of(prog, r) == 1;
-}
-
-/* Operand @a fits a componentwise op writing @d: same components or a float. */
-static bool fits(const struct sl_program *prog, int32_t d, int32_t a)
-{
-	return is_num(prog, a) && (ncomp_of(prog, a) == ncomp_of(prog, d) ||
-				   ncomp_of(prog, a) == 1);
-}
-
-/* NULL if @in's operands suit its op, else why not. */
-static const char *check_operands(const struct sl_program *prog, const struct sl_insn *in)
-{
-	int32_t d = in->dst;
-	const int32_t *a = in->args;
-	uint32_t na = in->nargs;
-	if (na && !a)
-		return "missing argument list";
-	if (d != -1 && !reg_ok(prog, d))
-		return "bad destination register";
-	for (uint32_t k = 0; k < na; k++)
-		if (!reg_ok(prog, a[k]))
-			return "bad argument register";
-	switch ((enum sl_op)in->op) {
-	case SL_OP_MOV:
-	case SL_OP_NEG:
-	case SL_OP_ADD: case SL_OP_SUB: case SL_OP_MUL: case SL_OP_DIV:
-	case SL_OP_DOT: case SL_OP_CROSS:
-	case SL_OP_LT: case SL_OP_LE: case SL_OP_GT: case SL_OP_GE:
-	case SL_OP_EQ: case SL_OP_NE:
-	case SL_OP_NOT: case SL_OP_AND: case SL_OP_OR:
-	case SL_OP_TRIPLE: case SL_OP_MATRIX: case SL_OP_COMP: case SL_OP_SETCOMP:
-	case SL_OP_AREF: case SL_OP_ASET: case SL_OP_SELECT:
-		if (d < 0)
-			return "missing destination";
-		break;
-	default:
-		break;
-	}
-	switch ((enum sl_op)in->op) {
-	case SL_OP_MOV: {
-		if (na != 1)
-			return "wrong operand count";
-		const struct sl_reg *rd = creg(prog, d), *ra = creg(prog, a[0]);
-		if (is_str(prog, d) != is_str(prog, a[0]))
-			return "string and number mixed";
-		if (rd->arraylen == ra->arraylen &&
-		    (is_str(prog, d) || sl_reg_ncomp(rd) == sl_reg_ncomp(ra)))
-			return NULL;
-		if (is_scalar(prog, a[0]) && is_num(prog, d))
-			return NULL;
-		return "operand types differ";
-	}
-	case SL_OP_NEG:
-		if (na != 1 || !is_num(prog, d) || !fits(prog, d, a[0]))
-			return "bad operand types";
-		return NULL;
-	case SL_OP_ADD: case SL_OP_SUB: case SL_OP_MUL: case SL_OP_DIV:
-		if (na != 2 || !is_num(prog, d) || !fits(prog, d, a[0]) || !fits(prog, d, a[1]))
-			return "bad operand types";
-		return NULL;
-	case SL_OP_DOT: case SL_OP_CROSS:
-		if (na != 2 || !is_num(prog, d) ||
-		    ncomp_of(prog, d) != (in->op == SL_OP_DOT ? 1 : 3))
-			return "bad destination type";
-		for (int k = 0; k < 2; k++)
-			if (!is_num(prog, a[k]) ||
-			    (ncomp_of(prog, a[k]) != 3 && ncomp_of(prog, a[k]) != 1))
-				return "operands must be triples";
-		return NULL;
-	case SL_OP_LT: case SL_OP_LE: case SL_OP_GT: case SL_OP_GE:
-	case SL_OP_AND: case SL_OP_OR:
-		if (na != 2 || !is_scalar(prog, d) || !is_scalar(prog, a[0]) ||
-		    !is_scalar(prog, a[1]))
-			return "operands must be floats";
-		return NULL;
-	case SL_OP_NOT:
-		if (na != 1 || !is_scalar(prog, d) || !is_scalar(prog, a[0]))
-			return "operand must be a float";
-		return NULL;
-	case SL_OP_EQ: case SL_OP_NE:
-		if (na != 2 || !is_scalar(prog, d))
-			return "bad operands";
-		if (is_str(prog, a[0]) || is_str(prog, a[1])) {
-			if (!is_str(prog, a[0]) || !is_str(prog, a[1]) ||
-			    creg(prog, a[0])->arraylen || creg(prog, a[1])->arraylen)
-				return "string compared with a number";
-			return NULL;
-		}
-		if (!is_num(prog, a[0]) || !is_num(prog, a[1]))
-			return "arrays cannot be compared";
-		if (ncomp_of(prog, a[0]) != ncomp_of(prog, a[1]) &&
-		    ncomp_of(prog, a[0]) != 1 && ncomp_of(prog, a[1]) != 1)
-			return "operand types differ";
-		return NULL;
-	case SL_OP_TRIPLE: case SL_OP_MATRIX: {
-		uint32_t want = in->op == SL_OP_TRIPLE ? 3 : 16;
-		if (na != want || !is_num(prog, d) || (uint32_t)ncomp_of(prog, d) != want)
-			return "bad operand count or destination";
-		for (uint32_t k = 0; k < na; k++)
-			if (!is_scalar(prog, a[k]))
-				return "components must be floats";
-		return NULL;
-	}
-	case SL_OP_COMP:
-		if (na != 1 || !is_scalar(prog, d) || !is_num(prog, a[0]) ||
-		    in->imm < 0 || in->imm >= ncomp_of(prog, a[0]))
-			return "bad component";
-		return NULL;
-	case SL_OP_SETCOMP:
-		if (na != 1 || !is_num(prog, d) || !is_scalar(prog, a[0]) || in->imm < 0 ||
-		    in->imm >= ncomp_of(prog, d))
-			return "bad component";
-		return NULL;
-	case SL_OP_AREF: case SL_OP_ASET: {
-		int32_t arr = in->op == SL_OP_AREF ? a[0] : d;
-		int32_t el = in->op == SL_OP_AREF ? d : a[0];
-		if (na != 2 || creg(prog, arr)->arraylen <= 0 || creg(prog, el)->arraylen != 0 ||
-		    is_str(prog, arr) != is_str(prog, el) ||
-		    ncomp_of(prog, arr) != ncomp_of(prog, el) || !is_scalar(prog, a[1]))
-			return "bad array access";
-		return NULL;
-	}
-	case SL_OP_SELECT:
-		if (na != 3 || !is_scalar(prog, a[0]))
-			return "bad condition";
-		for (int k = 1; k < 3; k++) {
-			if (is_str(prog, d) != is_str(prog, a[k]))
-				return "string and number mixed";
-			if (creg(prog, a[k])->arraylen == creg(prog, d)->arraylen &&
-			    (is_str(prog, d) || ncomp_of(prog, a[k]) == ncomp_of(prog, d)))
-				continue;
-			if (is_scalar(prog, a[k]) && is_num(prog, d))
-				continue;
-			return "operand types differ";
-		}
-		return NULL;
-	case SL_OP_IF: case SL_OP_LOOPTEST:
-		if (na != 1 || !is_scalar(prog, a[0]))
-			return "condition must be a float";
-		return NULL;
-	case SL_OP_ILLUMINANCE: {
-		if (in->imm != 0 && in->imm != 1)
-			return "bad category flag";
-		uint32_t k = (uint32_t)in->imm;
-		if (na != k + 1 && na != k + 3)
-			return "wrong operand count";
-		if (k && (!is_str(prog, a[0]) || creg(prog, a[0])->arraylen))
-			return "category must be a string";
-		if (!is_num(prog, a[k]) || ncomp_of(prog, a[k]) != 3)
-			return "position must be a point";
-		if (na == k + 3 && (!is_num(prog, a[k + 1]) || ncomp_of(prog, a[k + 1]) != 3 ||
-				    !is_scalar(prog, a[k + 2])))
-			return "bad axis or angle";
-		return NULL;
-	}
-	case SL_OP_ILLUMINATE:
-		if (na != 1 && na != 3)
-			return "wrong operand count";
-		if (!is_num(prog, a[0]) || ncomp_of(prog, a[0]) != 3)
-			return "position must be a point";
-		if (na == 3 && (!is_num(prog, a[1]) || ncomp_of(prog, a[1]) != 3 ||
-				!is_scalar(prog, a[2])))
-			return "bad axis or angle";
-		return NULL;
-	case SL_OP_SOLAR:
-		if (na != 0 && na != 2)
-			return "wrong operand count";
-		if (na == 2 && (!is_num(prog, a[0]) || ncomp_of(prog, a[0]) != 3 ||
-				!is_scalar(prog, a[1])))
-			return "bad axis or angle";
-		return NULL;
-	case SL_OP_BREAK: case SL_OP_CONTINUE:
-		if (in->imm < 1)
-			return "bad loop level";
-		return NULL;
-	default:
-		return in->op < SL_OP_COUNT ? NULL : "unknown op";
-	}
-}
-
-/* Open block on the checker's stack. */
-struct open_block {
-	uint32_t pc;
-	uint8_t state;     /* IF: 1 after ELSE; LOOP: 0 condition, 1 body, 2 step */
-};
-
-/*
- * Check that [b, e) is properly nested and that every jump names its
- * partner; record each LOOP's LOOPCONT and the deepest nesting.
- */
-static const char *check_range(const struct sl_program *prog, uint32_t b, uint32_t e,
-			       uint32_t *loopcont, uint32_t *maxdepth, uint32_t *where)
-{
-	const struct sl_insn *code = prog->code;
-	struct open_block *st = rl_xmalloc((size_t)(e - b + 1) * sizeof(*st));
-	uint32_t depth = 0;
-	const char *why = NULL;
-	for (uint32_t pc = b; pc < e && !why; pc++) {
-		const struct sl_insn *in = &code[pc];
-		const struct sl_insn *top = depth ? &code[st[depth - 1].pc] : NULL;
-		uint32_t tpc = depth ? st[depth - 1].pc : 0;
-		*where = pc;
-		switch ((enum sl_op)in->op) {
-		case SL_OP_IF:
-			if (in->jump[0] <= (int32_t)pc || in->jump[1] < in->jump[0] ||
-			    in->jump[1] >= (int32_t)e)
-				why = "bad if jumps";
-			st[depth++] = (struct open_block){ pc, 0 };
-			break;
-		case SL_OP_ELSE:
-			if (!top || top->op != SL_OP_IF || st[depth - 1].state ||
-			    top->jump[0] != (int32_t)pc || in->jump[0] != (int32_t)tpc ||
-			    in->jump[1] != top->jump[1])
-				why = "else without its if";
-			else
-				st[depth - 1].state = 1;
-			break;
-		case SL_OP_ENDIF:
-			if (!top || top->op != SL_OP_IF || top->jump[1] != (int32_t)pc ||
-			    in->jump[0] != (int32_t)tpc ||
-			    (!st[depth - 1].state && top->jump[0] != (int32_t)pc))
-				why = "endif without its if";
-			else
-				depth--;
-			break;
-		case SL_OP_LOOP:
-			if (in->jump[0] <= (int32_t)pc || in->jump[1] <= in->jump[0] ||
-			    in->jump[1] >= (int32_t)e)
-				why = "bad loop jumps";
-			st[depth++] = (struct open_block){ pc, 0 };
-			break;
-		case SL_OP_LOOPTEST:
-			if (!top || top->op != SL_OP_LOOP || st[depth - 1].state != 0 ||
-			    top->jump[0] != (int32_t)pc || in->jump[0] != (int32_t)tpc ||
-			    in->jump[1] != top->jump[1])
-				why = "looptest without its loop";
-			else
-				st[depth - 1].state = 1;
-			break;
-		case SL_OP_LOOPCONT:
-			if (!top || top->op != SL_OP_LOOP || st[depth - 1].state != 1 ||
-			    in->jump[0] != (int32_t)tpc)
-				why = "loopcont without its loop";
-			else {
-				st[depth - 1].state = 2;
-				loopcont[tpc] = pc;
-			}
-			break;
-		case SL_OP_LOOPEND:
-			if (!top || top->op != SL_OP_LOOP || st[depth - 1].state == 0 ||
-			    top->jump[1] != (int32_t)pc || in->jump[0] != (int32_t)tpc)
-				why = "loopend without its loop";
-			else
-				depth--;
-			break;
-		case SL_OP_BREAK:
-		case SL_OP_CONTINUE: {
-			int32_t loops = 0;
-			for (uint32_t k = depth; k-- > 0;) {
-				uint16_t op = code[st[k].pc].op;
-				if (op == SL_OP_FUNC)
-					break;
-				if (op == SL_OP_LOOP || op == SL_OP_ILLUMINANCE)
-					loops++;
-			}
-			if (in->imm < 1 || in->imm > loops)
-				why = "break or continue outside its loop";
-			break;
-		}
-		case SL_OP_FUNC:
-		case SL_OP_ILLUMINANCE:
-		case SL_OP_ILLUMINATE:
-		case SL_OP_SOLAR:
-			if (in->jump[0] <= (int32_t)pc || in->jump[0] >= (int32_t)e)
-				why = "bad block jump";
-			st[depth++] = (struct open_block){ pc, 0 };
-			break;
-		case SL_OP_FUNCEND:
-		case SL_OP_ILLUMINANCE_END:
-		case SL_OP_ILLUMINATE_END:
-		case SL_OP_SOLAR_END: {
-			uint16_t want = in->op == SL_OP_FUNCEND ? SL_OP_FUNC :
-					in->op == SL_OP_ILLUMINANCE_END ? SL_OP_ILLUMINANCE :
-					in->op == SL_OP_ILLUMINATE_END ? SL_OP_ILLUMINATE : SL_OP_SOLAR;
-			if (!top || top->op != want || top->jump[0] != (int32_t)pc ||
-			    in->jump[0] != (int32_t)tpc)
-				why = "block end without its opener";
-			else
-				depth--;
-			break;
-		}
-		default:
-			break;
-		}
-		if (depth > *maxdepth)
-			*maxdepth = depth;
-	}
-	if (!why && depth)
-		why = "block not closed";
-	free(st);
-	return why;
-}
-
-/* Everything the interpreter relies on for memory safety. */
-static bool check_program(const struct sl_program *prog, uint32_t *loopcont, uint32_t *maxdepth)
-{
-	const char *label = prog_label(prog);
-	if ((prog->nregs && !prog->regs) || (prog->ncode && !prog->code) ||
-	    (prog->nparams && !prog->params) || prog->body_begin > prog->ncode) {
-		fprintf(stderr, "%s: error: invalid program (missing tables)\n", label);
-		return false;
-	}
-	for (uint32_t r = 0; r < prog->nregs; r++) {
-		const struct sl_reg *g = &prog->regs[r];
-		const char *why = NULL;
-		if (g->type == SL_TYPE_VOID || g->type >= SL_TYPE_COUNT)
-			why = "bad type";
-		else if (g->arraylen < 0 || g->arraylen > MAX_ARRAY)
-			why = "bad array length";
-		else if (g->kind == SL_REG_CONST) {
-			uint64_t end = (uint64_t)g->cindex + reg_total(g);
-			if (g->type == SL_TYPE_STRING ? (end > prog->nstrings || !prog->strings)
-						      : (end > prog->nconsts || !prog->consts))
-				why = "constant outside the pool";
-		}
-		if (why) {
-			fprintf(stderr, "%s: error: invalid program: register %u: %s\n", label, r,
-				why);
-			return false;
-		}
-	}
-	for (int g = 0; g < SL_GLOBAL_COUNT; g++) {
-		int32_t r = prog->global_reg[g];
-		if (r == -1)
-			continue;
-		if (!reg_ok(prog, r) || !is_num(prog, r) || ncomp_of(prog, r) != global_ncomp[g]) {
-			fprintf(stderr, "%s: error: invalid program: bad register for global %d\n",
-				label, g);
-			return false;
-		}
-	}
-	for (uint32_t k = 0; k < prog->nparams; k++) {
-		const struct sl_param *pp = &prog->params[k];
-		if (!pp->name || !reg_ok(prog, pp->reg) || pp->init_begin > pp->init_end ||
-		    pp->init_end > prog->ncode) {
-			fprintf(stderr, "%s: error: invalid program: parameter %u\n", label, k);
-			return false;
-		}
-	}
-	for (uint32_t pc = 0; pc < prog->ncode; pc++) {
-		const char *why = check_operands(prog, &prog->code[pc]);
-		if (why) {
-			fprintf(stderr, "%s: error: invalid program: instruction %u (op %u): %s\n",
-				label, pc, prog->code[pc].op, why);
-			return false;
-		}
-	}
-	for (uint32_t k = 0; k <= prog->nparams; k++) {
-		uint32_t b = k < prog->nparams ? prog->params[k].init_begin : prog->body_begin;
-		uint32_t e = k < prog->nparams ? prog->params[k].init_end : prog->ncode;
-		uint32_t where = b;
-		const char *why = check_range(prog, b, e, loopcont, maxdepth, &where);
-		if (why) {
-			fprintf(stderr, "%s: error: invalid program: instruction %u: %s\n", label,
-				where, why);
-			return false;
-		}
-	}
-	return true;
-}
-
-/* ------------------------------------------------------------------------ */
 /* Creation                                                                  */
 
 /*
@@ -819,7 +414,7 @@ struct sl_exec *sl_exec_create(const struct sl_program *prog, uint32_t maxpoints
 	for (uint32_t i = 0; i <= prog->ncode; i++)
 		loopcont[i] = NONE;
 	uint32_t maxdepth = 0;
-	if (!check_program(prog, loopcont, &maxdepth)) {
+	if (!sl_exec_check_program(prog, loopcont, &maxdepth)) {
 		free(loopcont);
 		return NULL;
 	}
@@ -842,9 +437,9 @@ struct sl_exec *sl_exec_create(const struct sl_program *prog, uint32_t maxpoints
 		const struct sl_reg *g = &prog->regs[r];
 		size_t per = g->varying ? maxpoints : 1;
 		if (g->type == SL_TYPE_STRING)
-			nstrs += reg_total(g) * per;
+			nstrs += sl_exec_reg_total(g) * per;
 		else
-			nfloats += (reg_total(g) * per + 15) & ~(size_t)15;
+			nfloats += (sl_exec_reg_total(g) * per + 15) & ~(size_t)15;
 	}
 	if (nfloats > SIZE_MAX / sizeof(float) / 2 || nstrs > SIZE_MAX / sizeof(char *) / 2)
 		goto fail;
@@ -858,7 +453,7 @@ struct sl_exec *sl_exec_create(const struct sl_program *prog, uint32_t maxpoints
 	for (uint32_t r = 0; r < prog->nregs; r++) {
 		const struct sl_reg *g = &prog->regs[r];
 		size_t per = g->varying ? maxpoints : 1;
-		size_t tot = reg_total(g);
+		size_t tot = sl_exec_reg_total(g);
 		if (g->type == SL_TYPE_STRING) {
 			const char **d = p->strblock + so;
 			x->sdata[r] = d;
@@ -910,7 +505,7 @@ struct sl_exec *sl_exec_create(const struct sl_program *prog, uint32_t maxpoints
 
 fail:
 	fprintf(stderr, "%s: error: not enough memory for a grid of %u points\n",
-		prog_label(prog), maxpoints);
+		sl_exec_label(prog), maxpoints);
 	sl_exec_destroy(x);
 	return NULL;
 }
@@ -989,13 +584,13 @@ bool sl_exec_set_stencil(struct sl_exec *x, uint32_t m, const float *du, const f
 	}
 	if (m > x->maxn / 3 || !du || !dv) {
 		fprintf(stderr, "%s: error: derivative stencils of %u samples need %llu points, "
-			"the executor has %u\n", prog_label(x->prog), m, 3ull * m, x->maxn);
+			"the executor has %u\n", sl_exec_label(x->prog), m, 3ull * m, x->maxn);
 		return false;
 	}
 	for (uint32_t i = 0; i < m; i++)
 		if (!isfinite(du[i]) || !isfinite(dv[i])) {
 			fprintf(stderr, "%s: error: derivative stencil %u: the step along %s is "
-				"not finite\n", prog_label(x->prog), i, isfinite(du[i]) ? "v" : "u");
+				"not finite\n", sl_exec_label(x->prog), i, isfinite(du[i]) ? "v" : "u");
 			return false;
 		}
 	if (!x->stencil_du) {
@@ -1082,20 +677,20 @@ bool sl_exec_set_param(struct sl_exec *x, const char *name, const float *values,
 	const struct sl_program *prog = x->prog;
 	int k = find_param(prog, name);
 	if (k < 0) {
-		fprintf(stderr, "%s: error: no parameter named '%s'\n", prog_label(prog), name);
+		fprintf(stderr, "%s: error: no parameter named '%s'\n", sl_exec_label(prog), name);
 		return false;
 	}
 	const struct sl_reg *g = &prog->regs[prog->params[k].reg];
 	if (g->type == SL_TYPE_STRING) {
-		fprintf(stderr, "%s: error: parameter '%s' is a string\n", prog_label(prog), name);
+		fprintf(stderr, "%s: error: parameter '%s' is a string\n", sl_exec_label(prog), name);
 		return false;
 	}
-	uint32_t base = reg_total(g), npts = 0;
+	uint32_t base = sl_exec_reg_total(g), npts = 0;
 	if (nvalues != base) {
 		if (!g->varying || x->n < 1 || nvalues / x->n != base || nvalues % x->n) {
 			fprintf(stderr,
 				"%s: error: parameter '%s' takes %u values%s, not %u\n",
-				prog_label(prog), name, base,
+				sl_exec_label(prog), name, base,
 				g->varying ? " (or that many per point)" : "", nvalues);
 			return false;
 		}
@@ -1118,13 +713,13 @@ bool sl_exec_set_param_string(struct sl_exec *x, const char *name, const char *v
 	const struct sl_program *prog = x->prog;
 	int k = find_param(prog, name);
 	if (k < 0) {
-		fprintf(stderr, "%s: error: no parameter named '%s'\n", prog_label(prog), name);
+		fprintf(stderr, "%s: error: no parameter named '%s'\n", sl_exec_label(prog), name);
 		return false;
 	}
 	int32_t r = prog->params[k].reg;
 	const struct sl_reg *g = &prog->regs[r];
 	if (g->type != SL_TYPE_STRING || g->arraylen) {
-		fprintf(stderr, "%s: error: parameter '%s' is not a string\n", prog_label(prog),
+		fprintf(stderr, "%s: error: parameter '%s' is not a string\n", sl_exec_label(prog),
 			name);
 		return false;
 	}
@@ -1212,13 +807,13 @@ static void load_param(struct sl_exec *x, uint32_t k, struct xform *t, bool *hav
 	const struct pval *v = &x->priv->pvals[k];
 	uint32_t per = g->varying ? x->n : 1;
 	if (g->type == SL_TYPE_STRING) {
-		for (uint32_t e = 0; e < reg_total(g); e++)
+		for (uint32_t e = 0; e < sl_exec_reg_total(g); e++)
 			for (uint32_t i = 0; i < per; i++)
 				sset(x, r, (int)e, i, v->s ? v->s : "");
 		return;
 	}
 	float *d = x->data[r];
-	uint32_t tot = reg_total(g);
+	uint32_t tot = sl_exec_reg_total(g);
 	if (v->npts && v->npts != x->n) {
 		sl_exec_fail(x, NULL, "parameter '%s' was set for %u points but the grid has %u",
 			     prog->params[k].name, v->npts, x->n);
@@ -1418,7 +1013,7 @@ static void op_mov(struct sl_exec *x, const struct sl_insn *in)
 	int32_t d = in->dst, a = in->args[0];
 	const struct sl_reg *rd = &prog->regs[d];
 	if (rd->type == SL_TYPE_STRING) {
-		uint32_t tot = reg_total(rd);
+		uint32_t tot = sl_exec_reg_total(rd);
 		if (a == d)
 			return;
 		EACH_LANE(x, d, i)
@@ -1428,7 +1023,7 @@ static void op_mov(struct sl_exec *x, const struct sl_insn *in)
 	}
 	if (a == d)
 		return;
-	uint32_t tot = reg_total(rd), ta = reg_total(&prog->regs[a]);
+	uint32_t tot = sl_exec_reg_total(rd), ta = sl_exec_reg_total(&prog->regs[a]);
 	if (ta == tot) {
 		for (uint32_t c = 0; c < tot; c++)
 			apply(x, K_MOV, d, (int)c, a, (int)c, a, (int)c);
@@ -1642,7 +1237,7 @@ static void op_select(struct sl_exec *x, const struct sl_insn *in)
 	const struct sl_program *prog = x->prog;
 	int32_t d = in->dst, a = in->args[0], b = in->args[1], c = in->args[2];
 	const struct sl_reg *rd = &prog->regs[d];
-	uint32_t tot = reg_total(rd);
+	uint32_t tot = sl_exec_reg_total(rd);
 	if (rd->type == SL_TYPE_STRING) {
 		EACH_LANE(x, d, i) {
 			int32_t src = ld(x, a, 0, i) != 0.0f ? b : c;
@@ -1651,7 +1246,7 @@ static void op_select(struct sl_exec *x, const struct sl_insn *in)
 		}
 		return;
 	}
-	bool sb = reg_total(&prog->regs[b]) == 1, sc = reg_total(&prog->regs[c]) == 1;
+	bool sb = sl_exec_reg_total(&prog->regs[b]) == 1, sc = sl_exec_reg_total(&prog->regs[c]) == 1;
 	for (uint32_t k = 0; k < tot; k++) {
 		int kb = sb ? 0 : (int)k, kc = sc ? 0 : (int)k;
 		if (sl_x_varying(x, d) && sl_x_varying(x, a) && sl_x_varying(x, b) &&
@@ -2313,7 +1908,7 @@ static void fill_global(struct sl_exec *x, enum sl_global g, float v)
 	if (r < 0 || x->priv->held[r])
 		return;
 	uint32_t per = sl_x_varying(x, r) ? x->n : 1;
-	for (int c = 0; c < global_ncomp[g]; c++) {
+	for (int c = 0; c < sl_exec_global_ncomp[g]; c++) {
 		float *d = plane(x, r, c);
 		for (uint32_t i = 0; i < per; i++)
 			d[i] = v;
@@ -2328,12 +1923,12 @@ bool sl_exec_run(struct sl_exec *x, const struct sl_host *host)
 	struct sl_exec_private *p = x->priv;
 	if (p->running) {
 		fprintf(stderr, "%s: error: shader evaluated again while it runs\n",
-			prog_label(prog));
+			sl_exec_label(prog));
 		return false;
 	}
 	if (x->stencil_m && (x->nv != 1 || x->nu != 3 * x->stencil_m)) {
 		fprintf(stderr, "%s: error: derivative stencils of %u samples run on a %u x 1 "
-			"grid, not %u x %u\n", prog_label(prog), x->stencil_m, 3 * x->stencil_m,
+			"grid, not %u x %u\n", sl_exec_label(prog), x->stencil_m, 3 * x->stencil_m,
 			x->nu, x->nv);
 		return false;
 	}
@@ -2355,7 +1950,7 @@ bool sl_exec_run(struct sl_exec *x, const struct sl_host *host)
 		const struct sl_reg *g = &prog->regs[r];
 		if (g->type != SL_TYPE_STRING || g->kind == SL_REG_CONST || p->held[r])
 			continue;
-		size_t cnt = (size_t)reg_total(g) * (g->varying ? x->stride : 1);
+		size_t cnt = (size_t)sl_exec_reg_total(g) * (g->varying ? x->stride : 1);
 		for (size_t i = 0; i < cnt; i++)
 			x->sdata[r][i] = "";
 	}

@@ -220,4 +220,47 @@ uint32_t sl_exec_builtin_cost(const struct sl_program *prog, const struct sl_ins
 /** Run built-in call @in (SL_OP_CALL). Implemented in exec_builtins.c. */
 void sl_exec_builtin(struct sl_exec *x, const struct sl_insn *in);
 
+/* ---- shared by exec.c and exec_check.c ---------------------------------- */
+
+/* Longest array register accepted. */
+#define SL_EXEC_MAX_ARRAY (1 << 20)
+
+/* Components per global variable (all are floats or triples). */
+extern const uint8_t sl_exec_global_ncomp[SL_GLOBAL_COUNT];
+
+/* The program's file, or its name, for messages. */
+const char *sl_exec_label(const struct sl_program *prog);
+
+/* Floats (or string pointers) per point of register @r. */
+uint32_t sl_exec_reg_total(const struct sl_reg *r);
+
+/*
+ * Everything the interpreter relies on for memory safety, checked once per
+ * program before it runs (exec_check.c): false, reported on stderr, when
+ * the program breaks a rule. Fills @loopcont (per LOOP instruction: its
+ * LOOPCONT) and *@maxdepth (the deepest nesting of blocks).
+ */
+bool sl_exec_check_program(const struct sl_program *prog, uint32_t *loopcont,
+			   uint32_t *maxdepth);
+
+static inline bool reg_ok(const struct sl_program *prog, int32_t r)
+{
+	return r >= 0 && (uint32_t)r < prog->nregs;
+}
+
+static inline const struct sl_reg *creg(const struct sl_program *prog, int32_t r)
+{
+	return &prog->regs[r];
+}
+
+static inline bool is_str(const struct sl_program *prog, int32_t r)
+{
+	return creg(prog, r)->type == SL_TYPE_STRING;
+}
+
+static inline int ncomp_of(const struct sl_program *prog, int32_t r)
+{
+	return sl_reg_ncomp(creg(prog, r));
+}
+
 #endif
