@@ -116,8 +116,9 @@ def args():
 def bake_shots(relight_exe):
     """The folder of baked example shots (BUILD/integration-shots): each
     example's RIB copied there and baked with `relight bake`, once; again
-    when the example's RIB is newer than its shot. Tests run in parallel,
-    so a lock file serialises the baking."""
+    when the example's RIB or the relight that bakes is newer than its shot
+    (a rebuilt renderer may bake other values). Tests run in parallel, so a
+    lock file serialises the baking."""
     shots = os.path.join(build_dir(), "integration-shots")
     os.makedirs(shots, exist_ok=True)
     with open(os.path.join(build_dir(), "integration-shots.lock"), "w") as lock:
@@ -125,7 +126,8 @@ def bake_shots(relight_exe):
         for name, rib in EXAMPLES.items():
             src = os.path.join(SOURCE_DIR, "examples", name, rib)
             shot = os.path.join(shots, name + ".shot.exr")
-            if os.path.exists(shot) and os.path.getmtime(shot) >= os.path.getmtime(src):
+            newest = max(os.path.getmtime(src), os.path.getmtime(relight_exe))
+            if os.path.exists(shot) and os.path.getmtime(shot) >= newest:
                 continue
             shutil.copyfile(src, os.path.join(shots, rib))
             r = subprocess.run([relight_exe, "bake", "-q", rib], cwd=shots,

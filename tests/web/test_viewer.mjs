@@ -661,16 +661,6 @@ async function main() {
 		await edit('solo off', light(2, 'button.solo'));
 		c = compare(base, await canvasPixels(page));
 		check(c.differ === 0, 'solo off: the image as before', describe(c, width));
-		const f0 = await state(page);
-		await page.click(light(1, 'button.freeze'));
-		await until(page, 'freeze 1', (s) => s.ackedEdit >= f0.ackedEdit && s.pendingEdits === 0);
-		await page.waitForSelector(`${light(1, 'button.freeze')}[aria-pressed=true]`, {timeout: 5000});
-		await page.click(light(1, 'button.freeze'));
-		await page.waitForSelector(`${light(1, 'button.freeze')}[aria-pressed=false]`, {timeout: 5000});
-		const freezes = sent.filter((m) => m.op === 'freeze');
-		check(freezes.length === 2 && freezes[0].freeze === true && freezes[1].freeze === false &&
-		      freezes[0].light === '1', 'freeze and unfreeze are sent', JSON.stringify(freezes));
-		check((await state(page)).edit === f0.edit, 'a freeze changes no pixel: no new edit shown');
 		await page.fill('#add-light-shader', 'pointlight');
 		await page.fill('#add-light-name', 'L4');
 		await edit('add L4', '#add-light button[type=submit]');
@@ -685,6 +675,20 @@ async function main() {
 		await until(page, 'the final level after the removal', (s) => s.final);
 		c = compare(base, await canvasPixels(page));
 		check(c.differ === 0, 'L4 removed: the image as before', describe(c, width));
+		// Freezing is last: a light taken out of the light cache (float64) adds its
+		// contribution to the rounded sum in float32, so the same lights, frozen or
+		// not, may differ in the last bit (docs/runtime.md, "Light cache"); the
+		// comparisons with the first image above all end with every light frozen.
+		const f0 = await state(page);
+		await page.click(light(1, 'button.freeze'));
+		await until(page, 'freeze 1', (s) => s.ackedEdit >= f0.ackedEdit && s.pendingEdits === 0);
+		await page.waitForSelector(`${light(1, 'button.freeze')}[aria-pressed=true]`, {timeout: 5000});
+		await page.click(light(1, 'button.freeze'));
+		await page.waitForSelector(`${light(1, 'button.freeze')}[aria-pressed=false]`, {timeout: 5000});
+		const freezes = sent.filter((m) => m.op === 'freeze');
+		check(freezes.length === 2 && freezes[0].freeze === true && freezes[1].freeze === false &&
+		      freezes[0].light === '1', 'freeze and unfreeze are sent', JSON.stringify(freezes));
+		check((await state(page)).edit === f0.edit, 'a freeze changes no pixel: no new edit shown');
 	});
 
 	await section('stale tiles', async () => {
