@@ -230,8 +230,11 @@ static void test_bake(void)
 static void test_errors(void)
 {
 	char err[1024] = "", path[PATH_MAX] = "";
-	/* line 3: a sphere short of arguments */
-	CHECK(write_text(in(dir, "bad.rib"), "Format 8 8 1\nWorldBegin\nSphere 1 -1\nWorldEnd\n"));
+	/* line 3: a transformation short of arguments, which holds the frame back */
+	CHECK(write_text(in(dir, "bad.rib"), "Format 8 8 1\nWorldBegin\nTranslate 1 2\nWorldEnd\n"));
+	/* line 3: a sphere short of arguments, which drops that sphere alone */
+	CHECK(write_text(in(dir, "dropped.rib"), "Format 8 8 1\nWorldBegin\nSphere 1 -1\n"
+			 "Sphere 1 -1 1 360\nWorldEnd\n"));
 	/* no frame besides a shadow pass */
 	CHECK(write_text(in(dir, "empty.rib"), "Format 8 8 1\n"));
 	struct srv_shots *r = srv_shots_open(dir, err, sizeof(err));
@@ -250,6 +253,14 @@ static void test_errors(void)
 	CHECK(count_tmp(dir) == 0);
 	CHECK(srv_shots_find(r, "bad", path, sizeof(path)) == SRV_SHOT_NEEDS_BAKE);
 
+	/* A scene that lost a primitive to an error is not served as its shot: the
+	   error goes back with its line. */
+	err[0] = '\0';
+	CHECK(!srv_shots_bake(r, "dropped", NULL, NULL, path, sizeof(path), err, sizeof(err)));
+	CHECK(strstr(err, "dropped.rib:3") != NULL);
+	CHECK(!exists(in(dir, "dropped.shot.exr")));
+	CHECK(count_tmp(dir) == 0);
+
 	err[0] = '\0';
 	CHECK(!srv_shots_bake(r, "empty", NULL, NULL, path, sizeof(path), err, sizeof(err)));
 	CHECK(strstr(err, "empty.rib") != NULL && strstr(err, "no frame to bake") != NULL);
@@ -260,8 +271,9 @@ static void test_errors(void)
 	memset(small, 'x', sizeof(small));
 	CHECK(!srv_shots_bake(r, "bad", NULL, NULL, path, sizeof(path), small, sizeof(small)));
 	CHECK(memchr(small, '\0', sizeof(small)) != NULL);
-	CHECK(srv_shots_bakes_run(r) == 3);
+	CHECK(srv_shots_bakes_run(r) == 4);
 	unlink(in(dir, "bad.rib"));
+	unlink(in(dir, "dropped.rib"));
 	unlink(in(dir, "empty.rib"));
 	srv_shots_close(r);
 }
