@@ -1216,10 +1216,13 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 	struct reyes_bake_hooks hooks = {
 		.user = &b, .program = hook_program, .grid = hook_grid, .bucket = hook_bucket,
 	};
+	/* The default surface's program must live until the shot is written. */
+	struct reyes_shader_cache *own = opts->shader_cache ? NULL : reyes_shader_cache_create();
 	struct reyes_render_opts ro = {
 		.threads = opts->threads, .progress = opts->progress, .diag = b.diag, .bake = &hooks,
 		.memory_limit = opts->memory_limit,
 		.progress_fn = opts->progress_fn ? render_progress : NULL, .progress_user = &b,
+		.shader_cache = opts->shader_cache ? opts->shader_cache : own,
 	};
 	report(&b, 0.0, "rendering");
 	struct reyes_stats rs = { 0 };
@@ -1259,6 +1262,7 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 	bake_shadow_geometry_free(&b.shadow);
 	rl_vec_free(b.casters);
 	pthread_mutex_destroy(&b.lock);
+	reyes_shader_cache_destroy(own);
 	return ok;
 }
 
@@ -1403,6 +1407,7 @@ bool bake_rib_file(const char *rib, const char *out, const struct bake_opts *opt
 		.frame = rib_frame,
 		.user = &j,
 	};
+	j.bo.shader_cache = j.shaders;
 	rib_report(&j, 0.0, "reading");
 	bool ok = reyes_ri_read(rib, &ri, NULL);
 	reyes_shader_cache_destroy(j.shaders);

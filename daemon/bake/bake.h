@@ -56,6 +56,9 @@ struct bake_opts {
 	bool full_float;           /* store no channel as half */
 	/* Bytes a frame may take (reyes_render_opts.memory_limit; 0: the default). */
 	uint64_t memory_limit;
+	/* Where the default surface is compiled; it must outlive the bake, whose
+	   shot names the programs it shaded with (NULL: the bake's own). */
+	struct reyes_shader_cache *shader_cache;
 	bake_progress_fn progress_fn;  /* NULL: none (independent of @progress) */
 	void *progress_user;
 	/* bake_rib_file's shader search path, colon-separated (NULL:

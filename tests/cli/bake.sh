@@ -346,4 +346,19 @@ expect_stderr "junk.exr"
 cp "$source_dir/tests/cli/deform/deform.rib" "$work/"
 check_resolve "deforming primitives" deform.rib
 
+# Primitives with no Surface are shaded by the default surface, which the
+# bake compiles itself: its program must outlive the render, since the shot
+# names it (under AddressSanitizer a use after free, before).
+cat >"$work/nosurface.rib" <<'RIB'
+Format 40 30 1
+PixelSamples 2 2
+Display "nosurface.exr" "file" "rgba"
+WorldBegin
+  LightSource "distantlight" 1 "from" [1 1 -1] "to" [0 0 0]
+  Translate 0 0 5
+  Sphere 1 -1 1 360
+WorldEnd
+RIB
+check_resolve "the default surface" nosurface.rib
+
 finish
