@@ -116,11 +116,14 @@ static bool downsample(const struct reyes_image *src, struct reyes_image *dst)
 	return true;
 }
 
+/* One level of a pyramid from the one above it; false leaves @dst unset. */
+typedef bool (*halve_fn)(const struct reyes_image *src, struct reyes_image *dst);
+
 /*
- * Replace f->levels (one level) by the full pyramid built from it. Level 0
- * is moved, not copied.
+ * Replace f->levels (one level) by the full pyramid @halve builds from it.
+ * Level 0 is moved, not copied.
  */
-static bool build_pyramid(struct reyes_exr_file *f)
+static bool pyramid(struct reyes_exr_file *f, halve_fn halve)
 {
 	uint32_t n = level_count(f->levels[0].width, f->levels[0].height);
 	struct reyes_image *lv = calloc(n, sizeof(*lv));
@@ -131,11 +134,16 @@ static bool build_pyramid(struct reyes_exr_file *f)
 	f->levels = lv;
 	f->nlevels = 1;
 	for (uint32_t l = 1; l < n; l++) {
-		if (!downsample(&lv[l - 1], &lv[l]))
+		if (!halve(&lv[l - 1], &lv[l]))
 			return false;
 		f->nlevels = l + 1;
 	}
 	return true;
+}
+
+static bool build_pyramid(struct reyes_exr_file *f)
+{
+	return pyramid(f, downsample);
 }
 
 /* ------------------------------------------------------------------------ */
@@ -208,55 +216,47 @@ static uint32_t cube_face_size(const struct reyes_image *lv)
 }
 
 /*
- * Replace f->levels (one level, the six faces stacked) by the pyramid of a
- * cube map: each face halved on its own, so that no filter reaches across
- * into the next face of the stack. Levels too small to hold six faces are
- * plain halvings (no lookup reads them; they make the file a whole mip-map).
+ * A level of a cube map's pyramid (the six faces stacked): each face halved
+ * on its own, so that no filter reaches across into the next face of the
+ * stack. Levels too small to hold six faces are plain halvings (no lookup
+ * reads them; they make the file a whole mip-map).
  */
-static bool cube_pyramid(struct reyes_exr_file *f)
+static bool cube_halve(const struct reyes_image *src, struct reyes_image *dst)
 {
-	uint32_t n = level_count(f->levels[0].width, f->levels[0].height);
-	struct reyes_image *lv = calloc(n, sizeof(*lv));
-	if (!lv)
+	uint32_t sf = cube_face_size(src), w = src->width, h = src->height;
+	uint32_t dw = w > 1 ? w / 2 : 1, dh = h > 1 ? h / 2 : 1, nch = src->nchannels;
+	if (sf < 2 || dh < 6)
+		return downsample(src, dst);
+	if (!reyes_image_init(dst, dw, dh, nch, src->channel_names))
 		return false;
-	lv[0] = f->levels[0];
-	free(f->levels);
-	f->levels = lv;
-	f->nlevels = 1;
-	for (uint32_t l = 1; l < n; l++) {
-		const struct reyes_image *src = &lv[l - 1];
-		uint32_t sf = cube_face_size(src), w = src->width, h = src->height;
-		uint32_t dw = w > 1 ? w / 2 : 1, dh = h > 1 ? h / 2 : 1, nch = src->nchannels;
-		if (sf < 2 || dh < 6) {
-			if (!downsample(src, &lv[l]))
-				return false;
-			f->nlevels = l + 1;
-			continue;
-		}
-		if (!reyes_image_init(&lv[l], dw, dh, nch, src->channel_names))
-			return false;
-		f->nlevels = l + 1;
-		uint32_t df = cube_face_size(&lv[l]);
-		for (uint32_t face = 0; face < 6; face++) {
-			struct reyes_image a, b;
-			if (!reyes_image_init(&a, sf, sf, nch, src->channel_names))
-				return false;
+	uint32_t df = cube_face_size(dst);
+	for (uint32_t face = 0; face < 6; face++) {
+		struct reyes_image a, b;
+		bool ok = reyes_image_init(&a, sf, sf, nch, src->channel_names);
+		if (ok) {
 			for (uint32_t y = 0; y < sf; y++)
 				memcpy(a.data + (size_t)y * sf * nch,
 				       src->data + ((size_t)(face * sf + y) * w) * nch,
 				       (size_t)sf * nch * sizeof(float));
-			bool ok = downsample(&a, &b);
+			ok = downsample(&a, &b);
 			reyes_image_finish(&a);
-			if (!ok)
-				return false;
-			uint32_t cw = b.width < df ? b.width : df, ch = b.height < df ? b.height : df;
-			for (uint32_t y = 0; y < ch; y++)
-				memcpy(lv[l].data + ((size_t)(face * df + y) * dw) * nch,
-				       b.data + (size_t)y * b.width * nch, (size_t)cw * nch * sizeof(float));
-			reyes_image_finish(&b);
 		}
+		if (!ok) {
+			reyes_image_finish(dst);
+			return false;
+		}
+		uint32_t cw = b.width < df ? b.width : df, ch = b.height < df ? b.height : df;
+		for (uint32_t y = 0; y < ch; y++)
+			memcpy(dst->data + ((size_t)(face * df + y) * dw) * nch,
+			       b.data + (size_t)y * b.width * nch, (size_t)cw * nch * sizeof(float));
+		reyes_image_finish(&b);
 	}
 	return true;
+}
+
+static bool cube_pyramid(struct reyes_exr_file *f)
+{
+	return pyramid(f, cube_halve);
 }
 
 static void make_params(char *buf, size_t n, const char *filter, float swidth, float twidth)
