@@ -449,8 +449,11 @@ static void do_noise(struct sl_exec *x, const struct sl_insn *in, int id)
 	}
 }
 
-/* random(): a hash of (call site, point index, number of random() calls in this run). */
-
+/*
+ * random(): a hash of (call site, point index, number of random() calls in
+ * this run). In a uniform context (imm 1) it is one value for the grid, the
+ * one point 0 would draw, even where its result is stored per point.
+ */
 static void do_random(struct sl_exec *x, const struct sl_insn *in)
 {
 	int32_t d = in->dst;
@@ -459,9 +462,10 @@ static void do_random(struct sl_exec *x, const struct sl_insn *in)
 	uint32_t call = x->random_calls++;
 	uint32_t seed = (uint32_t)(in - x->prog->code);
 	int nc = rncomp(x, d);
+	bool one = in->imm == 1;
 	SL_X_EACH(x, d, i) {
 		for (int c = 0; c < nc && c < 3; c++)
-			put(x, d, c, i, sl_random(seed, i, call * 3u + (uint32_t)c));
+			put(x, d, c, i, sl_random(seed, one ? 0 : i, call * 3u + (uint32_t)c));
 	}
 }
 

@@ -10,6 +10,19 @@
  * or return under varying control). Those facts feed each other, so the pass
  * iterates to a fixpoint; it only ever turns things varying, so it ends.
  *
+ * A local declared `uniform` that has to vary is promoted, as prman and aqsl
+ * do: it becomes varying, one value per point exactly as if declared so, and
+ * the program records why (the compile report lists it). That is what makes
+ * library code such as a uniform octave counter in an fBm inlined under a
+ * varying `if`, or a uniform message read inside illuminance, mean what its
+ * author meant. What stays an error is what promotion cannot keep: a shader
+ * parameter (the renderer and other shaders hand it over, or read it, as
+ * one value per grid), a promoted variable passed to an `output uniform`
+ * formal, and names that are looked up once per grid.
+ *
+ * random() in a uniform context (lower.c marks it, imm = 1) is one value for
+ * the grid: it does not make its result vary.
+ *
  * Registers that stay uniform are computed once per grid instead of once per
  * point, which is most of the interpreter's speed on real shaders.
  */
@@ -160,7 +173,7 @@ static void pass(struct infer *f)
 			/* Built-ins that read globals (s, t, Ng, P...) without taking
 			 * them as arguments vary as those do. */
 			if (b->flags & (SL_BIF_VARYING | SL_BIF_LIGHTS | SL_BIF_GLOBALS))
-				v = true;
+				v = !(b->id == SL_BI_RANDOM && in->imm == 1);
 		}
 		/* Inputs: every argument that is not an output of a built-in. */
 		const char *sp = sig;
@@ -208,6 +221,110 @@ static void pass(struct infer *f)
 	}
 }
 
+/* Why register @r, declared uniform, varies: "assigned under varying control flow at 12". */
+static const char *promotion_why(struct sl_ctx *ctx, const struct sl_program *prog, int32_t r)
+{
+	for (uint32_t k = 0; k < prog->npromoted; k++) {
+		const struct sl_promotion *m = &prog->promoted[k];
+		if (m->reg == r)
+			return rl_arena_printf(ctx->arena, "'%s' is declared uniform but %s at line %u",
+					     prog->regs[r].name,
+					     m->ctl ? "is assigned under varying control flow"
+						    : "is assigned a varying value",
+					     m->at.line);
+	}
+	return NULL;
+}
+
+/* A uniform parameter that would have to vary: an error, with the reason. */
+static void param_error(struct sl_ctx *ctx, const struct sl_program *prog, int32_t r,
+			const struct sl_insn *in, int32_t at, bool ctl)
+{
+	const struct sl_reg *reg = &prog->regs[r];
+	for (uint32_t k = 0; k < prog->nparams; k++) {
+		if (prog->params[k].reg == r && (uint32_t)at < prog->params[k].init_end) {
+			sl_error(ctx, in->loc, "the default of uniform parameter '%s' is varying",
+				 reg->name);
+			return;
+		}
+	}
+	const char *how = ctl ? "assigned inside varying control flow" : "assigned a varying value";
+	if (reg->output)
+		sl_error(ctx, in->loc,
+			 "output uniform parameter '%s' is %s: other shaders read it as one value "
+			 "per grid (declare it varying)", reg->name, how);
+	else
+		sl_error(ctx, in->loc,
+			 "uniform parameter '%s' is %s: the renderer hands a uniform parameter "
+			 "over as one value per grid (declare it varying)", reg->name, how);
+}
+
+/* Make the uniform locals that vary varying; parameters that vary are errors. */
+static bool promote(struct sl_ctx *ctx, struct sl_program *prog, const struct infer *f)
+{
+	bool ok = true;
+	uint32_t n = 0;
+	for (uint32_t r = 0; r < prog->nregs; r++)
+		n += f->var[r] && prog->regs[r].declared_uniform && f->why[r] >= 0;
+	prog->promoted = rl_arena_alloc(ctx->arena, sizeof(struct sl_promotion) * (n + 1));
+	prog->npromoted = 0;
+	for (uint32_t r = 0; r < prog->nregs; r++) {
+		struct sl_reg *reg = &prog->regs[r];
+		if (f->var[r] && reg->declared_uniform && f->why[r] >= 0) {
+			const struct sl_insn *in = &prog->code[f->why[r]];
+			if (reg->kind == SL_REG_PARAM) {
+				param_error(ctx, prog, (int32_t)r, in, f->why[r], f->why_ctl[r]);
+				ok = false;
+			} else {
+				struct sl_promotion m = { (int32_t)r, in->loc, f->why_ctl[r] };
+				prog->promoted[prog->npromoted++] = m;
+				reg->promoted = true;
+			}
+		}
+		reg->varying = f->var[r];
+	}
+	return ok;
+}
+
+/* Names of textures and messages are looked up once per grid: they must not
+ * vary from point to point. Nor may a promoted variable be what an output
+ * uniform formal refers to. */
+static bool check_uniform_uses(struct sl_ctx *ctx, const struct sl_program *prog)
+{
+	bool ok = true;
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		const struct sl_insn *in = &prog->code[i];
+		if (in->op != SL_OP_CALL || in->bi < 0 || in->nargs == 0)
+			continue;
+		const struct sl_builtin *b = &sl_builtins[in->bi];
+		if (!(b->flags & (SL_BIF_TEXNAME | SL_BIF_MESSAGE)))
+			continue;
+		if (prog->regs[in->args[0]].varying) {
+			const char *why = promotion_why(ctx, prog, in->args[0]);
+			sl_error(ctx, in->loc, "the name given to %s() must be uniform, not varying%s%s%s",
+				 b->name, why ? " (" : "", why ? why : "", why ? ")" : "");
+			ok = false;
+		}
+		if ((b->flags & SL_BIF_TEXNAME) && in->nargs > 1 && prog->regs[in->args[1]].varying) {
+			const char *why = promotion_why(ctx, prog, in->args[1]);
+			sl_error(ctx, in->loc, "the channel given to %s() must be uniform%s%s%s",
+				 b->name, why ? " (" : "", why ? why : "", why ? ")" : "");
+			ok = false;
+		}
+	}
+	for (uint32_t k = 0; k < prog->nurefs; k++) {
+		const struct sl_uniform_ref *u = &prog->urefs[k];
+		if (!prog->regs[u->reg].promoted)
+			continue;
+		sl_error(ctx, u->loc,
+			 "%s, and it is passed to the output uniform formal '%s' of %s(), which "
+			 "refers to one value for the grid (declare one of them varying)",
+			 promotion_why(ctx, prog, u->reg), u->formal, u->func);
+		ok = false;
+	}
+	return ok;
+}
+
 bool sl_infer(struct sl_ctx *ctx, struct sl_program *prog)
 {
 	struct infer f = { .prog = prog };
@@ -224,51 +341,8 @@ bool sl_infer(struct sl_ctx *ctx, struct sl_program *prog)
 		pass(&f);
 	} while (f.changed);
 
-	bool ok = true;
-	for (uint32_t r = 0; r < prog->nregs; r++) {
-		struct sl_reg *reg = &prog->regs[r];
-		if (f.var[r] && reg->declared_uniform && f.why[r] >= 0) {
-			const struct sl_insn *in = &prog->code[f.why[r]];
-			bool in_default = false;
-			for (uint32_t k = 0; k < prog->nparams; k++)
-				if (prog->params[k].reg == (int32_t)r &&
-				    (uint32_t)f.why[r] < prog->params[k].init_end)
-					in_default = true;
-			const char *what = reg->kind == SL_REG_PARAM ? "parameter" : "variable";
-			if (in_default)
-				sl_error(ctx, in->loc,
-					 "the default of uniform parameter '%s' is varying", reg->name);
-			else if (f.why_ctl[r])
-				sl_error(ctx, in->loc,
-					 "uniform %s '%s' is assigned inside varying control flow "
-					 "(declare it varying)", what, reg->name);
-			else
-				sl_error(ctx, in->loc,
-					 "uniform %s '%s' is assigned a varying value (declare it "
-					 "varying)", what, reg->name);
-			ok = false;
-		}
-		reg->varying = f.var[r];
-	}
-	/* Names of textures, coordinate systems' partners and messages are looked
-	 * up once per grid: they must not vary from point to point. */
-	for (uint32_t i = 0; i < prog->ncode; i++) {
-		const struct sl_insn *in = &prog->code[i];
-		if (in->op != SL_OP_CALL || in->bi < 0 || in->nargs == 0)
-			continue;
-		const struct sl_builtin *b = &sl_builtins[in->bi];
-		if (!(b->flags & (SL_BIF_TEXNAME | SL_BIF_MESSAGE)))
-			continue;
-		if (prog->regs[in->args[0]].varying) {
-			sl_error(ctx, in->loc, "the name given to %s() must be uniform, not varying",
-				 b->name);
-			ok = false;
-		}
-		if ((b->flags & SL_BIF_TEXNAME) && in->nargs > 1 && prog->regs[in->args[1]].varying) {
-			sl_error(ctx, in->loc, "the channel given to %s() must be uniform", b->name);
-			ok = false;
-		}
-	}
+	bool ok = promote(ctx, prog, &f);
+	ok = check_uniform_uses(ctx, prog) && ok;
 	free(f.var);
 	free(f.why);
 	free(f.why_ctl);

@@ -78,6 +78,8 @@ void sl_ir_print_insn(const struct sl_program *prog, uint32_t i, FILE *out)
 	if (in->op == SL_OP_COMP || in->op == SL_OP_SETCOMP || in->op == SL_OP_BREAK ||
 	    in->op == SL_OP_CONTINUE)
 		fprintf(out, " [%d]", in->imm);
+	if (in->op == SL_OP_CALL && in->imm == 1)
+		fputs(" [uniform]", out);
 	if (in->jump[0] >= 0 || in->jump[1] >= 0) {
 		fprintf(out, "  ->");
 		if (in->jump[0] >= 0)

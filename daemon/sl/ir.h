@@ -38,7 +38,8 @@ struct sl_reg {
 	uint8_t type;        /* enum sl_basetype (never VOID; BOOL is stored like FLOAT) */
 	bool varying;        /* after uniformity inference */
 	bool output;         /* an output parameter (or an output global such as Ci) */
-	bool declared_uniform; /* written `uniform`: becoming varying is an error */
+	bool declared_uniform; /* written `uniform` (parameters: not written `varying`) */
+	bool promoted;       /* declared uniform, made varying by inference (see infer.c) */
 	int32_t arraylen;    /* 0: not an array; n > 0: n elements */
 	int32_t global;      /* SL_REG_GLOBAL: enum sl_global; else -1 */
 	uint32_t cindex;     /* SL_REG_CONST: float offset into consts, or index into strings */
@@ -85,7 +86,9 @@ static inline int sl_reg_ncomp(const struct sl_reg *r)
  *   ASET      dst[b] = a                     (dst is an array register)
  *   SELECT    dst = a ? b : c                (a bool; b and c already computed)
  *   CALL      dst = builtin(args)            (bi = index into sl_builtins[];
- *             dst is -1 for void built-ins; output arguments are written)
+ *             dst is -1 for void built-ins; output arguments are written;
+ *             imm = 1 on random() in a uniform context: one value for the
+ *             grid, whatever dst's storage)
  *
  * Structured control flow. jump[] hold instruction indices.
  *   IF a          jump[0] = its ELSE (or ENDIF if none), jump[1] = its ENDIF.
@@ -148,6 +151,25 @@ struct sl_insn {
 	struct sl_loc loc;  /* source of the statement or expression */
 };
 
+/**
+ * A local declared `uniform` that inference made varying (it is assigned a
+ * varying value, or assigned under varying control flow): it then holds one
+ * value per point, exactly as if declared varying. `relight compile --emit
+ * report` lists these.
+ */
+struct sl_promotion {
+	int32_t reg;
+	struct sl_loc at;     /* the write that made it vary */
+	bool ctl;             /* ...because it runs under varying control flow */
+};
+
+/** A variable passed by reference to an `output uniform` formal of a function. */
+struct sl_uniform_ref {
+	int32_t reg;
+	struct sl_loc loc;    /* the call */
+	const char *func, *formal;
+};
+
 /** A shader parameter: its register and its default's code. */
 struct sl_param {
 	const char *name;
@@ -183,6 +205,11 @@ struct sl_program {
 	uint32_t nstrings;
 
 	int32_t global_reg[SL_GLOBAL_COUNT];  /* register of each global used, or -1 */
+
+	struct sl_promotion *promoted;   /* uniform locals made varying, by register */
+	uint32_t npromoted;
+	struct sl_uniform_ref *urefs;    /* arguments of output uniform formals */
+	uint32_t nurefs;
 
 	/* The files the source came from, for locations (index = sl_loc.file). */
 	const char **files;

@@ -44,6 +44,10 @@ struct lower {
 	struct const_slot { uint64_t key; int32_t reg; } *cslots;
 	size_t ccap, ccount;
 	struct sl_loc loc;      /* location of the statement being lowered */
+	/* Lowering a value stored into a variable declared uniform: random()
+	 * there is one value for the grid, as in prman. */
+	bool uniform_ctx;
+	RL_VEC(struct sl_uniform_ref) urefs;
 };
 
 static const char *const global_names[SL_GLOBAL_COUNT] = {
@@ -469,13 +473,17 @@ static int32_t lower_assign(struct lower *l, struct sl_ast *e)
 {
 	struct lval v = lower_lval(l, e->a);
 	int base = e->a->ty.base;
+	bool saved = l->uniform_ctx;
+	l->uniform_ctx = l->regs.data[v.reg].declared_uniform;
 	if (e->op == SL_TOK_ASSIGN) {
 		int32_t val = lower_expr(l, e->b);
+		l->uniform_ctx = saved;
 		store_lval(l, v, val);
 		return load_lval(l, v, base);
 	}
 	int32_t old = load_lval(l, v, base);
 	int32_t val = lower_expr(l, e->b);
+	l->uniform_ctx = saved;
 	int rtype = base;
 	/* point -= point is a vector; store back as the variable's type */
 	int32_t r = emit2(l, binop(e->op), temp(l, rtype), old, val);
@@ -573,6 +581,10 @@ static int32_t lower_user_call(struct lower *l, struct sl_ast *e)
 			 MAX_INLINE_DEPTH);
 		return const_float(l, 0);
 	}
+	/* A function's value is its own: the caller's uniform context does not
+	 * reach into its arguments or body. */
+	bool saved_ctx = l->uniform_ctx;
+	l->uniform_ctx = false;
 	/* Arguments are evaluated in the caller's frame. */
 	struct lval outs[64];
 	int32_t vals[64];
@@ -603,6 +615,10 @@ static int32_t lower_user_call(struct lower *l, struct sl_ast *e)
 		}
 		if (p->output && outs[i].index < 0) {
 			formal_regs[i] = outs[i].reg;
+			if (p->type.detail == SL_DETAIL_UNIFORM) {
+				struct sl_uniform_ref u = { outs[i].reg, e->loc, f->name, p->name };
+				rl_vec_push(l->urefs, u);
+			}
 		} else {
 			formal_regs[i] = new_reg(l, p->type.base, alen, SL_REG_LOCAL, p->name, p->loc);
 			if (p->output)
@@ -630,6 +646,7 @@ static int32_t lower_user_call(struct lower *l, struct sl_ast *e)
 			store_lval(l, outs[i], formal_regs[i]);
 	l->inline_depth--;
 	l->frame = fr.caller;
+	l->uniform_ctx = saved_ctx;
 	rl_vec_free(fr.vars);
 	return fr.ret >= 0 ? fr.ret : const_float(l, 0);
 }
@@ -689,6 +706,8 @@ static int32_t lower_builtin_call(struct lower *l, struct sl_ast *e)
 		dst = temp(l, sl_sig_type(b->sig[0]).base);
 	struct sl_insn *in = emit(l, SL_OP_CALL, dst, (int)n);
 	in->bi = e->overload;
+	if (b->id == SL_BI_RANDOM && l->uniform_ctx)
+		in->imm = 1;
 	if (n)
 		memcpy(in->args, args, sizeof(int32_t) * n);
 	in->loc = e->loc;
@@ -778,7 +797,9 @@ static int32_t lower_var(struct lower *l, struct sl_ast *v, enum sl_reg_kind kin
 	if (!init)
 		return r;
 	struct sl_loc saved = l->loc;
+	bool saved_ctx = l->uniform_ctx;
 	l->loc = init->loc;
+	l->uniform_ctx = reg->declared_uniform;
 	if (init->kind == SL_AST_ARRAYLIT) {
 		for (uint32_t i = 0; i < init->nlist; i++) {
 			int32_t val = lower_expr(l, init->list[i]);
@@ -787,6 +808,7 @@ static int32_t lower_var(struct lower *l, struct sl_ast *v, enum sl_reg_kind kin
 	} else {
 		store(l, r, lower_expr(l, init));
 	}
+	l->uniform_ctx = saved_ctx;
 	l->loc = saved;
 	return r;
 }
@@ -1052,11 +1074,18 @@ struct sl_program *sl_lower(struct sl_ctx *ctx, struct sl_ast *shader)
 		if (l.strings.len)
 			memcpy(prog->strings, l.strings.data, sizeof(char *) * l.strings.len);
 		memcpy(prog->global_reg, l.global_reg, sizeof(l.global_reg));
+		prog->nurefs = (uint32_t)l.urefs.len;
+		prog->urefs = rl_arena_alloc(ctx->arena,
+					     sizeof(struct sl_uniform_ref) * (l.urefs.len + 1));
+		if (l.urefs.len)
+			memcpy(prog->urefs, l.urefs.data,
+			       sizeof(struct sl_uniform_ref) * l.urefs.len);
 	}
 	rl_vec_free(l.regs);
 	rl_vec_free(l.code);
 	rl_vec_free(l.consts);
 	rl_vec_free(l.strings);
+	rl_vec_free(l.urefs);
 	free(l.cslots);
 	return ok ? prog : NULL;
 }

@@ -313,6 +313,34 @@ void sl_emit(const struct sl_program *prog, enum sl_emit_kind kind, FILE *out)
 		sl_emit_report(prog, NULL, out);
 }
 
+static void json_loc(struct rl_strbuf *b, const struct sl_program *prog, struct sl_loc loc)
+{
+	const char *file = loc.file < prog->nfiles ? prog->files[loc.file] : "?";
+	rl_strbuf_json_string(b, file);
+	rl_strbuf_printf(b, ", \"line\": %u", loc.line);
+}
+
+/*
+ * The uniform locals inference made varying, and why (see infer.c): name,
+ * line of the declaration, and file and line of the write that made it vary.
+ */
+static void report_promoted(struct rl_strbuf *b, const struct sl_program *prog)
+{
+	for (uint32_t k = 0; k < prog->npromoted; k++) {
+		const struct sl_promotion *m = &prog->promoted[k];
+		const struct sl_reg *r = &prog->regs[m->reg];
+		rl_strbuf_printf(b, "%s\n    {\"name\": ", k ? "," : "");
+		rl_strbuf_json_string(b, r->name ? r->name : "");
+		rl_strbuf_printf(b, ", \"declared\": %u, \"file\": ", r->loc.line);
+		json_loc(b, prog, m->at);
+		rl_strbuf_printf(b, ", \"reason\": \"%s\"}",
+				 m->ctl ? "assigned under varying control flow"
+					: "assigned a varying value");
+	}
+	if (prog->npromoted)
+		rl_strbuf_puts(b, "\n  ");
+}
+
 void sl_emit_report(const struct sl_program *prog, const char *extra, FILE *out)
 {
 	struct rl_strbuf b = { 0 };
@@ -362,6 +390,8 @@ void sl_emit_report(const struct sl_program *prog, const char *extra, FILE *out)
 		rl_strbuf_printf(&b, "%s\"%s\"", first ? "" : ", ", sl_global_name((enum sl_global)g));
 		first = false;
 	}
+	rl_strbuf_puts(&b, "],\n  \"promoted\": [");
+	report_promoted(&b, prog);
 	unsigned total = prog->ncode, varying = 0, calls = 0, control = 0;
 	for (uint32_t i = 0; i < prog->ncode; i++) {
 		const struct sl_insn *in = &prog->code[i];
