@@ -2,6 +2,7 @@
 #include "ast.h"
 
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 static const char *const basetype_names[SL_TYPE_COUNT] = {
@@ -164,7 +165,8 @@ static void dump_list(const struct sl_ctx *ctx, const struct sl_ast *n, int dept
 		dump_child(ctx, n->list[i], depth, out, true);
 }
 
-static void dump_node(const struct sl_ctx *ctx, const struct sl_ast *n, int depth, FILE *out)
+/* The node's own line: kind, details, location. */
+static void dump_line(const struct sl_ctx *ctx, const struct sl_ast *n, int depth, FILE *out)
 {
 	for (int i = 0; i < depth; i++)
 		fputs("  ", out);
@@ -221,7 +223,33 @@ static void dump_node(const struct sl_ctx *ctx, const struct sl_ast *n, int dept
 
 	const char *file = n->loc.file < ctx->files.len ? ctx->files.data[n->loc.file] : "<input>";
 	fprintf(out, " (%s:%u:%u)\n", file, n->loc.line, n->loc.col);
+}
 
+/*
+ * A chain a + b + c + ... prints as the tree it is, each operator above its
+ * operands, but its left spine is followed in a loop: ten thousand terms
+ * are not ten thousand frames.
+ */
+static void dump_chain(const struct sl_ctx *ctx, const struct sl_ast *n, int depth, FILE *out)
+{
+	RL_VEC(const struct sl_ast *) spine = { 0 };
+	for (; n->kind == SL_AST_BINARY && n->a; n = n->a) {
+		dump_line(ctx, n, depth + (int)spine.len, out);
+		rl_vec_push(spine, n);
+	}
+	dump_node(ctx, n, depth + (int)spine.len, out);
+	for (size_t i = spine.len; i-- > 0;)
+		dump_child(ctx, spine.data[i]->b, depth + (int)i + 1, out, false);
+	rl_vec_free(spine);
+}
+
+static void dump_node(const struct sl_ctx *ctx, const struct sl_ast *n, int depth, FILE *out)
+{
+	if (n->kind == SL_AST_BINARY) {
+		dump_chain(ctx, n, depth, out);
+		return;
+	}
+	dump_line(ctx, n, depth, out);
 	int d = depth + 1;
 	switch (n->kind) {
 	case SL_AST_CTOR:

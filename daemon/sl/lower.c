@@ -307,30 +307,32 @@ static void store(struct lower *l, int32_t dst, int32_t val)
 	emit1(l, SL_OP_MOV, dst, val);
 }
 
+/* Does evaluating @e write anything? (The left operand is followed in a
+ * loop: a flat chain of ten thousand terms is not that many frames.) */
 static bool has_side_effects(const struct sl_ast *e)
 {
-	if (!e)
-		return false;
-	switch (e->kind) {
-	case SL_AST_ASSIGN:
-	case SL_AST_INCDEC:
-		return true;
-	case SL_AST_CALL:
-		if (e->overload < 0)
-			return true; /* user functions */
-		if (sl_builtins[e->overload].flags & SL_BIF_SIDE_EFFECT)
+	for (; e; e = e->a) {
+		switch (e->kind) {
+		case SL_AST_ASSIGN:
+		case SL_AST_INCDEC:
 			return true;
-		if (strchr(sl_builtins[e->overload].sig, '&'))
+		case SL_AST_CALL:
+			if (e->overload < 0)
+				return true; /* user functions */
+			if (sl_builtins[e->overload].flags & SL_BIF_SIDE_EFFECT)
+				return true;
+			if (strchr(sl_builtins[e->overload].sig, '&'))
+				return true;
+			break;
+		default:
+			break;
+		}
+		if (has_side_effects(e->b) || has_side_effects(e->c))
 			return true;
-		break;
-	default:
-		break;
+		for (uint32_t i = 0; i < e->nlist; i++)
+			if (has_side_effects(e->list[i]))
+				return true;
 	}
-	if (has_side_effects(e->a) || has_side_effects(e->b) || has_side_effects(e->c))
-		return true;
-	for (uint32_t i = 0; i < e->nlist; i++)
-		if (has_side_effects(e->list[i]))
-			return true;
 	return false;
 }
 
@@ -388,9 +390,9 @@ static void close_if(struct lower *l, int32_t if_at, int32_t else_at)
 }
 
 /* a && b, a || b: both sides computed when the right one has no side effects. */
-static int32_t lower_logic(struct lower *l, struct sl_ast *e)
+/* a && b, a || b, with @a (the left operand) already lowered. */
+static int32_t lower_logic(struct lower *l, struct sl_ast *e, int32_t a)
 {
-	int32_t a = lower_expr(l, e->a);
 	if (!has_side_effects(e->b)) {
 		int32_t b = lower_expr(l, e->b);
 		return emit2(l, binop(e->op), temp(l, SL_TYPE_BOOL), a, b);
@@ -714,6 +716,42 @@ static int32_t lower_builtin_call(struct lower *l, struct sl_ast *e)
 	return dst >= 0 ? dst : const_float(l, 0);
 }
 
+/* One operator of a chain, its left operand @a already lowered. */
+static int32_t lower_binary_node(struct lower *l, struct sl_ast *e, int32_t a)
+{
+	if (e->op == SL_TOK_AND || e->op == SL_TOK_OR)
+		return lower_logic(l, e, a);
+	int32_t b = lower_expr(l, e->b);
+	enum sl_op op = binop(e->op);
+	if (op == SL_OP_EQ || op == SL_OP_NE) {
+		/* compare like with like */
+		int ta = reg_type(l, a), tb = reg_type(l, b);
+		if (sl_type_ncomp(ta) > sl_type_ncomp(tb))
+			b = coerce(l, b, e->a->ty);
+		else if (sl_type_ncomp(tb) > sl_type_ncomp(ta))
+			a = coerce(l, a, e->b->ty);
+	}
+	return emit2(l, op, temp(l, e->ty.base), a, b);
+}
+
+/* A chain a + b + c + ...: its left spine in a loop, innermost operator first. */
+static int32_t lower_binary(struct lower *l, struct sl_ast *e)
+{
+	RL_VEC(struct sl_ast *) spine = { 0 };
+	struct sl_ast *n = e;
+	do {
+		rl_vec_push(spine, n);
+		n = n->a;
+	} while (n->kind == SL_AST_BINARY);
+	int32_t v = lower_expr(l, n);
+	for (size_t i = spine.len; i-- > 0;) {
+		l->loc = spine.data[i]->loc;
+		v = lower_binary_node(l, spine.data[i], v);
+	}
+	rl_vec_free(spine);
+	return v;
+}
+
 static int32_t lower_expr_inner(struct lower *l, struct sl_ast *e)
 {
 	switch (e->kind) {
@@ -732,22 +770,7 @@ static int32_t lower_expr_inner(struct lower *l, struct sl_ast *e)
 		return a;
 	}
 	case SL_AST_BINARY:
-		if (e->op == SL_TOK_AND || e->op == SL_TOK_OR)
-			return lower_logic(l, e);
-		{
-			int32_t a = lower_expr(l, e->a);
-			int32_t b = lower_expr(l, e->b);
-			enum sl_op op = binop(e->op);
-			if (op == SL_OP_EQ || op == SL_OP_NE) {
-				/* compare like with like */
-				int ta = reg_type(l, a), tb = reg_type(l, b);
-				if (sl_type_ncomp(ta) > sl_type_ncomp(tb))
-					b = coerce(l, b, e->a->ty);
-				else if (sl_type_ncomp(tb) > sl_type_ncomp(ta))
-					a = coerce(l, a, e->b->ty);
-			}
-			return emit2(l, op, temp(l, e->ty.base), a, b);
-		}
+		return lower_binary(l, e);
 	case SL_AST_ASSIGN:
 		return lower_assign(l, e);
 	case SL_AST_INCDEC:
@@ -972,22 +995,33 @@ static void lower_stmt(struct lower *l, struct sl_ast *st)
 	l->loc = saved;
 }
 
+/* Does the statement @st hold a return (outside nested functions)? Only
+ * statements are visited: an expression holds none. */
 static bool shader_has_return(const struct sl_ast *st)
 {
 	if (!st)
 		return false;
-	if (st->kind == SL_AST_RETURN)
+	switch (st->kind) {
+	case SL_AST_RETURN:
 		return true;
-	if (st->kind == SL_AST_FUNC)
-		return false;
-	if (shader_has_return(st->a) || shader_has_return(st->b) || shader_has_return(st->c) ||
-	    shader_has_return(st->d))
-		return true;
-	if (st->kind == SL_AST_BLOCK)
+	case SL_AST_BLOCK:
 		for (uint32_t i = 0; i < st->nlist; i++)
 			if (shader_has_return(st->list[i]))
 				return true;
-	return false;
+		return false;
+	case SL_AST_IF:
+		return shader_has_return(st->b) || shader_has_return(st->c);
+	case SL_AST_WHILE:
+		return shader_has_return(st->b);
+	case SL_AST_FOR:
+		return shader_has_return(st->d);
+	case SL_AST_ILLUMINANCE:
+	case SL_AST_ILLUMINATE:
+	case SL_AST_SOLAR:
+		return shader_has_return(st->a);
+	default:
+		return false;
+	}
 }
 
 struct sl_program *sl_lower(struct sl_ctx *ctx, struct sl_ast *shader)

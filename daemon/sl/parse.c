@@ -17,9 +17,12 @@
  * type (color, point, vector, normal or matrix) is not known here and comes
  * from the context in which they are used, which semantic analysis resolves.
  *
- * Nesting is limited to MAX_DEPTH levels of statements, parenthesized or
- * prefixed expressions and chained binary operators, so no pass that walks
- * the tree recursively can run out of stack.
+ * Nesting is limited to MAX_DEPTH levels of statements, parenthesized,
+ * prefixed or called expressions and right operands, so no pass that walks
+ * the tree recursively can run out of stack. A flat chain of left-associative
+ * operators (`a + b + c + ...`, as generated shaders have by the thousand) is
+ * not nesting: every pass walks its left spine in a loop, so it is bounded
+ * by its size instead, MAX_EXPR_OPS operators in one expression.
  */
 #include "ast.h"
 #include "builtin.h"
@@ -32,6 +35,7 @@
 #include <string.h>
 
 #define MAX_DEPTH 256
+#define MAX_EXPR_OPS 100000
 #define MAX_ARRAY_LEN (1 << 20)
 #define MAX_SPELLING 40
 
@@ -49,6 +53,8 @@ struct parser {
 	size_t pos;
 	struct sl_token eof;       /* stands in for a missing final EOF */
 	int depth;
+	int expr_nest;             /* parse_expr calls open: 0 outside expressions */
+	uint32_t expr_ops;         /* binary operators of the outermost expression so far */
 	bool fatal;                /* nesting too deep: give up on the whole unit */
 	struct name_set funcs;
 };
@@ -683,7 +689,6 @@ static struct sl_ast *parse_binary_level(struct parser *p, const enum sl_tok *op
 					 parse_fn next)
 {
 	struct sl_ast *left = next(p);
-	int saved = p->depth;
 	while (left) {
 		const struct sl_token *t = cur(p);
 		bool match = false;
@@ -691,8 +696,12 @@ static struct sl_ast *parse_binary_level(struct parser *p, const enum sl_tok *op
 			match = match || t->kind == ops[i];
 		if (!match)
 			break;
-		/* each operator adds a level to the left-leaning tree */
-		if (!enter(p)) {
+		/* The tree leans left and every walk follows that spine in a
+		 * loop: an operator adds size, not depth. */
+		if (++p->expr_ops > MAX_EXPR_OPS) {
+			error_near(p, t, "expression too large (more than %d operators)",
+				   MAX_EXPR_OPS);
+			p->fatal = true;
 			left = NULL;
 			break;
 		}
@@ -708,7 +717,6 @@ static struct sl_ast *parse_binary_level(struct parser *p, const enum sl_tok *op
 		n->b = right;
 		left = n;
 	}
-	p->depth = saved;
 	return left;
 }
 
@@ -801,6 +809,8 @@ static struct sl_ast *parse_expr(struct parser *p)
 {
 	if (!enter(p))
 		return NULL;
+	if (p->expr_nest++ == 0)
+		p->expr_ops = 0;
 	struct sl_ast *n = parse_conditional(p);
 	if (n && is_assign_op(kind(p))) {
 		const struct sl_token *t = cur(p);
@@ -822,6 +832,7 @@ static struct sl_ast *parse_expr(struct parser *p)
 			}
 		}
 	}
+	p->expr_nest--;
 	leave(p);
 	return n;
 }

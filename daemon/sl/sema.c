@@ -293,18 +293,21 @@ bad:
 	return T_VOID;
 }
 
-static struct sl_type check_binary(struct sema *s, struct sl_ast *e, struct sl_type expect)
+/* One operator of a chain whose left operand, when @left_done, is already checked. */
+static struct sl_type check_binary_node(struct sema *s, struct sl_ast *e, struct sl_type expect,
+					bool left_done)
 {
 	int op = e->op;
 	struct sl_type a, b;
 	/* A bare tuple takes its type from the other operand. */
-	if (is_bare_tuple(e->a) && !is_bare_tuple(e->b)) {
+	if (!left_done && is_bare_tuple(e->a) && !is_bare_tuple(e->b)) {
 		b = check_expr(s, e->b, expect);
 		a = check_expr(s, e->a, b);
 		settle_tuple(s, e->a, sl_type_is_triple(b.base) ? b : expect);
 		a = e->a->ty;
 	} else {
-		a = check_expr(s, e->a, expect);
+		if (!left_done)
+			a = check_expr(s, e->a, expect);
 		settle_tuple(s, e->a, expect);
 		a = e->a->ty;
 		b = check_expr(s, e->b, a);
@@ -356,6 +359,30 @@ static struct sl_type check_binary(struct sema *s, struct sl_ast *e, struct sl_t
 	sl_error(s->ctx, e->loc, "operator %s cannot be applied to %s and %s",
 		 sl_tok_name((enum sl_tok)op), tname(s, a), tname(s, b));
 	return T_VOID;
+}
+
+/*
+ * A chain a + b + c + ... leans left: its spine is walked in a loop,
+ * innermost operator first, so that ten thousand terms are not ten thousand
+ * stack frames. Each operator's left operand is checked as check_expr()
+ * would, with the chain's expected type.
+ */
+static struct sl_type check_binary(struct sema *s, struct sl_ast *e, struct sl_type expect)
+{
+	RL_VEC(struct sl_ast *) spine = { 0 };
+	struct sl_ast *n = e;
+	while (n->a && n->a->kind == SL_AST_BINARY) {
+		rl_vec_push(spine, n);
+		n = n->a;
+	}
+	struct sl_type t = check_binary_node(s, n, expect, false);
+	for (size_t i = spine.len; i-- > 0;) {
+		t.detail = SL_DETAIL_DEFAULT;
+		spine.data[i]->a->ty = t;
+		t = check_binary_node(s, spine.data[i], expect, true);
+	}
+	rl_vec_free(spine);
+	return t;
 }
 
 static struct sl_type check_assign(struct sema *s, struct sl_ast *e)
