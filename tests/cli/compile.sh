@@ -50,6 +50,38 @@ names = [p["name"] for p in r["parameters"]]
 assert names == ["Kd", "tint"], names
 ' "$work/stdout"
 
+# A uniform local that has to vary is promoted, silently on stderr, with a
+# note in the report: its name, declaration and the write that made it vary.
+cat >"$work/promote.sl" <<'SL'
+surface promote(float octaves = 4)
+{
+	uniform float i, amp = 1;
+	float sum = 0;
+	if (s > 0.5)
+		for (i = 0; i < octaves; i += 1) {
+			sum += amp * noise(P * i);
+			amp *= 0.5;
+		}
+	Ci = sum;
+}
+SL
+run "--emit report, promoted uniforms" "$relight" compile --emit report "$work/promote.sl"
+expect_status 0
+expect_empty_stderr
+expect_true "report lists the promoted uniforms" python3 -c '
+import json, sys
+r = json.load(open(sys.argv[1]))
+got = sorted((p["name"], p["declared"], p["line"], p["reason"]) for p in r["promoted"])
+want = [("amp", 3, 8, "assigned under varying control flow"),
+        ("i", 3, 6, "assigned under varying control flow")]
+assert got == want, got
+' "$work/stdout"
+run "--emit report, nothing promoted" "$relight" compile --emit report "$work/good.sl"
+expect_true "report has an empty promoted list" python3 -c '
+import json, sys
+assert json.load(open(sys.argv[1]))["promoted"] == []
+' "$work/stdout"
+
 run "--emit ir" "$relight" compile --emit ir "$work/good.sl"
 expect_status 0
 expect_stdout 'mul'

@@ -96,8 +96,9 @@ static void test_diagnostics(void)
 		     "surface s() {\n  gather(\"illuminance\", P, N, 1, 4) { Ci = 1; }\n}\n", 2, 3,
 		     "gather");
 	expect_error("solar.sl", "light l() {\n  solar() { Cl = 1; }\n}\n", 2, 3, "solar");
-	expect_error("uniform.sl", "surface s() {\n  uniform float x = 0;\n  x = s;\n  Ci = x;\n}\n",
-		     3, 0 + 5, "uniform");
+	/* A uniform local that varies is promoted; a uniform parameter is not. */
+	expect_error("uniform.sl", "surface s(float x = 0) {\n  x = s;\n  Ci = x;\n}\n",
+		     2, 0 + 5, "uniform parameter 'x' is assigned a varying value");
 	expect_error("empty.sl", "", 1, 1, NULL);
 	expect_error("two.sl", "surface a() { }\nsurface b() { }\n", 2, 9, "second shader");
 	expect_error("noparam.sl", "surface s(float Kd) { Ci = Kd; }\n", 1, 17, "default");

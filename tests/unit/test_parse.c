@@ -765,9 +765,6 @@ static void test_deep_nesting(void)
 		{"surface s() { x = ", "color \"rgb\" "},
 		{"surface s() { x = ", "x["},
 		{"surface s() { x = ", "f("},
-		{"surface s() { x = ", "a + "},
-		{"surface s() { x = ", "a * "},
-		{"surface s() { x = ", "1 . "},
 		{"surface s() { ", "{"},
 		{"surface s() { ", "if (1) "},
 		{"surface s() { ", "if (1) ; else "},
@@ -791,6 +788,33 @@ static void test_deep_nesting(void)
 			fprintf(stderr, "  with '%s' x %d:\n%s", cases[k].open, N, fx_diag(&fx));
 		fx_finish(&fx);
 		rl_strbuf_finish(&b);
+	}
+
+	/*
+	 * A flat chain leans left and is walked in loops: not nesting. It is
+	 * bounded by its size, 100,000 operators; one more is an error.
+	 */
+	static const char *const flat[] = { "a + ", "a * ", "1 . ", "a - " };
+	for (size_t k = 0; k < sizeof(flat) / sizeof(flat[0]); k++) {
+		for (int over = 0; over <= 1; over++) {
+			struct rl_strbuf b = {0};
+			rl_strbuf_puts(&b, "surface s() { x = ");
+			for (int i = 0; i < N + over; i++)
+				rl_strbuf_puts(&b, flat[k]);
+			rl_strbuf_puts(&b, "1; }");
+			struct fx fx;
+			fx_init(&fx);
+			fx_parse(&fx, rl_strbuf_str(&b));
+			CHECK(fx.ctx.nerrors == over);
+			if (over)
+				CHECK(strstr(fx_diag(&fx), "error: expression too large (more than "
+						"100000 operators) near") != NULL);
+			if (fx.ctx.nerrors != over)
+				fprintf(stderr, "  with '%s' x %d:\n%s", flat[k], N + over,
+					fx_diag(&fx));
+			fx_finish(&fx);
+			rl_strbuf_finish(&b);
+		}
 	}
 
 	/* just under the limit is fine */
