@@ -16,6 +16,7 @@
  */
 #include "glsl.h"
 #include "clock.h"
+#include "strbuf.h"
 #include "spec.h"
 #include "gpu.h"
 #include "exec.h"
@@ -1374,6 +1375,102 @@ static void test_illuminance(void)
 	sl_program_destroy(b);
 	sl_program_destroy(cn);
 	sl_program_destroy(amb);
+}
+
+/*
+ * Uniform locals that have to vary are promoted (rsl.md, "Storage classes"):
+ * an fBm's uniform counter and amplitude inlined under a varying if, a
+ * uniform counter of a loop whose condition varies, a uniform message read
+ * for each light and a uniform assigned inside illuminate. The generated
+ * GLSL must compute per point what the interpreter does.
+ */
+static const char promote_src[] =
+	"float fbm(point p; uniform float octaves) {\n"
+	"	uniform float i, amp = 1;\n"
+	"	float sum = 0;\n"
+	"	point pp = p;\n"
+	"	for (i = 0; i < octaves; i += 1) {\n"
+	"		sum += amp * noise(pp);\n"
+	"		amp *= 0.5;\n"
+	"		pp *= 2;\n"
+	"	}\n"
+	"	return sum;\n"
+	"}\n"
+	"surface promote(float oct = 4; output varying float o1 = 0, o2 = 0;\n"
+	"	output varying color o3 = 0)\n"
+	"{\n"
+	"	if (s > 0.5)\n"
+	"		o1 = fbm(P, oct);\n"
+	"	uniform float j;\n"
+	"	float fw = u * 0.9 + 0.02;\n"
+	"	for (j = 0; j < 6 && fw < 1.0; j += 1)\n"
+	"		fw *= 2;\n"
+	"	o2 = j + fw;\n"
+	"	uniform float nonspec = 0;\n"
+	"	illuminance(P) {\n"
+	"		nonspec = 0;\n"
+	"		lightsource(\"__nonspecular\", nonspec);\n"
+	"		uniform float w = 1 - nonspec;\n"
+	"		o3 += w * Cl;\n"
+	"	}\n"
+	"	Ci = o3;\n"
+	"}\n";
+
+static const char promote_light_src[] =
+	"light promotelight(float intensity = 1; point from = point(0, 1, -2);\n"
+	"	float __nonspecular = 0)\n"
+	"{\n"
+	"	uniform float k = 0;\n"
+	"	illuminate(from) {\n"
+	"		k = 1 / (1 + L . L);\n"
+	"		Cl = intensity * k;\n"
+	"	}\n"
+	"}\n";
+
+static void test_promoted_uniforms(void)
+{
+	static const char *const outs[] = { "o1", "o2", "o3", "Ci" };
+	struct sl_program *sp = compile("promote.sl", promote_src);
+	struct sl_program *l = compile("promotelight.sl", promote_light_src);
+	CHECK(sp && l);
+	if (sp && l) {
+		struct xc c;
+		xc_init(&c, "promoted uniforms", sp, NPTS);
+		xc_add(&c, l);
+		xc_add(&c, l);
+		xc_setf(&c, 2, "intensity", 2);
+		xc_setf(&c, 2, "__nonspecular", 1);
+		xc_add(&c, l);
+		xc_setf(&c, 3, "intensity", 0.5f);
+		xc_setf(&c, 3, "__nonspecular", 0.25f);
+		xc_check(&c, outs, 4, TOL);
+		xc_free(&c);
+	}
+	sl_program_destroy(sp);
+	sl_program_destroy(l);
+}
+
+/*
+ * A flat chain of FLAT_TERMS products, as generated shaders write them: the
+ * GLSL of a long left-leaning expression computes what the interpreter does.
+ * (A thousand terms: llvmpipe's compile time grows faster than the source,
+ * 1.8 s here; test_uniform.c generates the GLSL of ten thousand.)
+ */
+#define FLAT_TERMS 1000
+
+static void test_flat_expression(void)
+{
+	static const char *const outs[] = { "x" };
+	static const char *const names[] = { "s", "t", "u", "Kd" };
+	struct rl_strbuf b = { 0 };
+	rl_strbuf_puts(&b, "surface flat(float Kd = 0.5; output varying float x = 0)\n{\n\tx = ");
+	for (int k = 0; k < FLAT_TERMS; k++)
+		rl_strbuf_printf(&b, "%s%d*%s", k ? (k % 5 == 4 ? " - " : " + ") : "", k % 7 + 1,
+				 names[k % 4]);
+	rl_strbuf_puts(&b, ";\n\tCi = x;\n}\n");
+	double e = check_source("flat.sl", rl_strbuf_str(&b), outs, 1, TOL);
+	CHECK(e >= 0);
+	rl_strbuf_finish(&b);
 }
 
 /* Light @j of the per-light test, program @i of @c: its parameters. */
@@ -2736,6 +2833,8 @@ int main(void)
 	RUN(test_strings);
 	RUN(test_noise);
 	RUN(test_illuminance);
+	RUN(test_promoted_uniforms);
+	RUN(test_flat_expression);
 	RUN(test_per_light);
 	RUN(test_other_shaders);
 	RUN(test_library_lights);
