@@ -147,14 +147,28 @@ static void dump_type(const struct sl_type *t, FILE *out)
 
 static void dump_node(const struct sl_ctx *ctx, const struct sl_ast *n, int depth, FILE *out);
 
+/*
+ * Two spaces a level; past MAX_INDENT levels the level is written as a
+ * number after them, so that a flat chain of 100,000 terms (100,000 levels
+ * of the left-leaning tree) prints in linear, not quadratic, space.
+ */
+#define MAX_INDENT 64
+
+static void indent(int depth, FILE *out)
+{
+	for (int i = 0; i < depth && i < MAX_INDENT; i++)
+		fputs("  ", out);
+	if (depth > MAX_INDENT)
+		fprintf(out, "[%d] ", depth);
+}
+
 static void dump_child(const struct sl_ctx *ctx, const struct sl_ast *n, int depth, FILE *out,
 		       bool show_null)
 {
 	if (n) {
 		dump_node(ctx, n, depth, out);
 	} else if (show_null) {
-		for (int i = 0; i < depth; i++)
-			fputs("  ", out);
+		indent(depth, out);
 		fputs("(none)\n", out);
 	}
 }
@@ -168,8 +182,7 @@ static void dump_list(const struct sl_ctx *ctx, const struct sl_ast *n, int dept
 /* The node's own line: kind, details, location. */
 static void dump_line(const struct sl_ctx *ctx, const struct sl_ast *n, int depth, FILE *out)
 {
-	for (int i = 0; i < depth; i++)
-		fputs("  ", out);
+	indent(depth, out);
 	fputs(sl_ast_kind_name(n->kind), out);
 
 	switch (n->kind) {

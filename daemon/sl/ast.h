@@ -137,7 +137,7 @@ struct sl_ast *sl_ast_new(struct sl_ctx *ctx, enum sl_ast_kind kind, struct sl_l
  */
 struct sl_ast *sl_parse(struct sl_ctx *ctx, const struct sl_token *toks, size_t ntoks);
 
-/** Print the tree, one node a line, indented by depth. */
+/** Print the tree, one node a line, indented by depth ("[N] " past 64 levels). */
 void sl_ast_dump(const struct sl_ctx *ctx, const struct sl_ast *node, FILE *out);
 
 /** "NUM", "BINARY", ... */
