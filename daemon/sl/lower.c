@@ -623,6 +623,10 @@ static int32_t lower_user_call(struct lower *l, struct sl_ast *e)
 			}
 		} else {
 			formal_regs[i] = new_reg(l, p->type.base, alen, SL_REG_LOCAL, p->name, p->loc);
+			/* a formal is a local of the call: a uniform one given a
+			 * varying argument is promoted (and reported) like any other */
+			l->regs.data[formal_regs[i]].declared_uniform =
+				p->type.detail == SL_DETAIL_UNIFORM;
 			if (p->output)
 				store(l, formal_regs[i], load_lval(l, outs[i], p->type.base));
 			else

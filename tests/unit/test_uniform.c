@@ -474,6 +474,30 @@ static void test_random_specialized(void)
 	sl_program_destroy(p);
 }
 
+/* ---- a uniform formal given a varying argument ---- */
+
+static const char formal_src[] =
+	"float twice(STORAGE float n) { return n * 2; }\n"
+	"surface formal(output varying float a = 0, b = 0) { a = twice(s); b = twice(3); }\n";
+
+static void test_uniform_formal(void)
+{
+	struct sl_program *p = compile_as("formal.sl", formal_src, "uniform", stderr);
+	CHECK(p != NULL);
+	if (!p)
+		return;
+	/* The call with s promotes its n (noted); the call with 3 keeps its own uniform. */
+	CHECK(reported_promoted(p, "n"));
+	struct sl_exec *x = sl_exec_create(p, NPT);
+	CHECK(run(x, NULL));
+	for (uint32_t i = 0; i < NPT; i++) {
+		CHECK_NEAR(out(x, p, "a", 0, i), 2.0 * (i % NU) / (NU - 1), 1e-6);
+		CHECK_NEAR(out(x, p, "b", 0, i), 6, 0);
+	}
+	sl_exec_destroy(x);
+	sl_program_destroy(p);
+}
+
 /* ---- what stays an error ---- */
 
 static char diag_text[4096];
@@ -640,6 +664,7 @@ int main(void)
 	RUN(test_message_passing);
 	RUN(test_random_uniform);
 	RUN(test_random_specialized);
+	RUN(test_uniform_formal);
 	RUN(test_still_errors);
 	RUN(test_flat_expression);
 	RUN(test_real_nesting);
