@@ -423,43 +423,34 @@ static const char random_spec_src[] =
 	"	Ci = color(Kd * k, Kd * j, Kd * (k + s));\n"
 	"}\n";
 
-static void test_random_specialized(void)
+/*
+ * Run @p whole and specialized for its parameter Kd = @kd (the caching
+ * program, then the dynamic program on its cache); Ci of both into @whole
+ * and @dyn (3 x NPT, component-major). The slice's GLSL must generate.
+ */
+static bool run_specialized(const struct sl_program *p, float kd, float *whole, float *dyn)
 {
-	struct sl_program *p = compile_as("rndspec.sl", random_spec_src, "uniform", stderr);
-	CHECK(p != NULL);
-	if (!p)
-		return;
-	const char *dyn[] = { "Kd" };
-	struct sl_spec *sp = sl_specialize(p, dyn, 1, stderr);
+	const char *dynp[] = { "Kd" };
+	struct sl_spec *sp = sl_specialize(p, dynp, 1, stderr);
 	CHECK(sp != NULL);
-	if (!sp) {
-		sl_program_destroy(p);
-		return;
-	}
-	struct sl_exec *whole = sl_exec_create(p, NPT), *cache = sl_exec_create(sp->caching, NPT);
-	struct sl_exec *dynx = sl_exec_create(sp->dynamic, NPT);
-	float kd = 0.75f;
-	CHECK(sl_exec_set_param(whole, "Kd", &kd, 1));
-	CHECK(sl_exec_set_param(dynx, "Kd", &kd, 1));
-	CHECK(run(whole, NULL));
-	CHECK(run(cache, NULL));
-	CHECK(sl_spec_copy_cache(sp, dynx, cache, NULL, NPT));
-	CHECK(sl_exec_run(dynx, NULL));
-	bool vw, vd;
-	const float *cw = sl_exec_global(whole, SL_GLOBAL_CI, &vw);
-	const float *cd = sl_exec_global(dynx, SL_GLOBAL_CI, &vd);
-	CHECK(cw && cd && vw && vd);
-	if (cw && cd && vw && vd) {
-		uint32_t sw = sl_exec_stride(whole), sd = sl_exec_stride(dynx);
-		bool vary = false;
-		for (uint32_t i = 0; i < NPT; i++) {
-			for (int c = 0; c < 3; c++)
-				CHECK_NEAR(cd[c * sd + i], cw[c * sw + i], 1e-6);
-			CHECK_NEAR(cw[i], cw[0], 0);           /* Kd * k: uniform */
-			vary = vary || cw[sw + i] != cw[sw];  /* Kd * j: varying */
+	if (!sp)
+		return false;
+	struct sl_exec *wx = sl_exec_create(p, NPT), *cx = sl_exec_create(sp->caching, NPT);
+	struct sl_exec *dx = sl_exec_create(sp->dynamic, NPT);
+	bool ok = sl_exec_set_param(wx, "Kd", &kd, 1) && sl_exec_set_param(dx, "Kd", &kd, 1) &&
+		  run(wx, NULL) && run(cx, NULL) && sl_spec_copy_cache(sp, dx, cx, NULL, NPT) &&
+		  sl_exec_run(dx, NULL);
+	CHECK(ok);
+	bool vw = false, vd = false;
+	const float *cw = ok ? sl_exec_global(wx, SL_GLOBAL_CI, &vw) : NULL;
+	const float *cd = ok ? sl_exec_global(dx, SL_GLOBAL_CI, &vd) : NULL;
+	ok = cw && cd && vw && vd;
+	CHECK(ok);
+	for (uint32_t i = 0; ok && i < NPT; i++)
+		for (int c = 0; c < 3; c++) {
+			whole[c * NPT + i] = cw[c * sl_exec_stride(wx) + i];
+			dyn[c * NPT + i] = cd[c * sl_exec_stride(dx) + i];
 		}
-		CHECK(vary);
-	}
 	struct sl_glsl_layout lay;
 	char *glsl = sl_glsl_emit(&sp->slice, NULL, 0, &lay, stderr);
 	CHECK(glsl != NULL);
@@ -467,11 +458,79 @@ static void test_random_specialized(void)
 		free(glsl);
 		sl_glsl_layout_finish(&lay);
 	}
-	sl_exec_destroy(whole);
-	sl_exec_destroy(cache);
-	sl_exec_destroy(dynx);
+	sl_exec_destroy(wx);
+	sl_exec_destroy(cx);
+	sl_exec_destroy(dx);
 	sl_spec_destroy(sp);
+	return ok;
+}
+
+static void test_random_specialized(void)
+{
+	struct sl_program *p = compile_as("rndspec.sl", random_spec_src, "uniform", stderr);
+	CHECK(p != NULL);
+	if (!p)
+		return;
+	float whole[3 * NPT], dyn[3 * NPT];
+	if (run_specialized(p, 0.75f, whole, dyn)) {
+		bool vary = false;
+		for (uint32_t i = 0; i < NPT; i++) {
+			for (int c = 0; c < 3; c++)
+				CHECK_NEAR(dyn[c * NPT + i], whole[c * NPT + i], 1e-6);
+			CHECK_NEAR(whole[i], whole[0], 0);                 /* Kd * k: uniform */
+			vary = vary || whole[NPT + i] != whole[NPT];       /* Kd * j: varying */
+		}
+		CHECK(vary);
+	}
 	sl_program_destroy(p);
+}
+
+/*
+ * Promoted uniforms through specialization: the fBm's, static, computed by
+ * the caching program; a loop counter whose loop's condition reads the
+ * dynamic Kd, in the dynamic part. Both must give what the whole shader
+ * gives, as written and with the declarations varying.
+ */
+static const char promoted_spec_src[] =
+	"surface pspec(float Kd = 0.5; float oct = 4)\n"
+	"{\n"
+	"	STORAGE float i, amp = 1;\n"
+	"	float sum = 0;\n"
+	"	if (s > 0.4)\n"
+	"		for (i = 0; i < oct; i += 1) {\n"
+	"			sum += amp * noise(P * 3 * (i + 1));\n"
+	"			amp *= 0.5;\n"
+	"		}\n"
+	"	STORAGE float j;\n"
+	"	float fw = u * 0.9 + 0.02;\n"
+	"	for (j = 0; j < 6 && fw < Kd * 2; j += 1)\n"
+	"		fw *= 2;\n"
+	"	Ci = color(sum, j, fw) * Kd;\n"
+	"}\n";
+
+static void test_promoted_specialized(void)
+{
+	struct sl_program *u = compile_as("pspec.sl", promoted_spec_src, "uniform", stderr);
+	struct sl_program *v = compile_as("pspec.sl", promoted_spec_src, "varying", stderr);
+	CHECK(u && v);
+	if (u && v) {
+		CHECK(reported_promoted(u, "i") && reported_promoted(u, "j"));
+		static const float kds[] = { 0.5f, 0.3f };
+		for (int k = 0; k < 2; k++) {
+			float wu[3 * NPT], du[3 * NPT], wv[3 * NPT], dv[3 * NPT];
+			if (!run_specialized(u, kds[k], wu, du) || !run_specialized(v, kds[k], wv, dv))
+				continue;
+			for (uint32_t i = 0; i < 3 * NPT; i++) {
+				CHECK_NEAR(du[i], wu[i], 1e-6);
+				CHECK_NEAR(wu[i], wv[i], 0);
+				CHECK_NEAR(dv[i], wv[i], 1e-6);
+			}
+			/* the counter differs over the grid */
+			CHECK(wu[NPT] != wu[NPT + NU - 1]);
+		}
+	}
+	sl_program_destroy(u);
+	sl_program_destroy(v);
 }
 
 /* ---- a uniform formal given a varying argument ---- */
@@ -664,6 +723,7 @@ int main(void)
 	RUN(test_message_passing);
 	RUN(test_random_uniform);
 	RUN(test_random_specialized);
+	RUN(test_promoted_specialized);
 	RUN(test_uniform_formal);
 	RUN(test_still_errors);
 	RUN(test_flat_expression);
