@@ -192,6 +192,10 @@ struct sl_program {
 	char source_hash[33];
 	/* Hash of the tokens compiled (sl_program_hash), as 32 hex digits. */
 	char program_hash[33];
+	/* A surface joined with its atmosphere (sl_program_compose): the two
+	   programs it was made from, which outlive it; else NULL. Its name is
+	   "SURFACE+ATMOSPHERE", its source and hashes the surface's. */
+	const struct sl_program *surface_part, *atmosphere;
 };
 
 /** Print one instruction as "  12  add %t3:color <- %Cs, %t2  ; file:line". */
@@ -200,6 +204,9 @@ void sl_ir_print_insn(const struct sl_program *prog, uint32_t i, FILE *out);
 void sl_ir_dump(const struct sl_program *prog, FILE *out);
 /** A register's printable name ("Ci", "Kd", "t12", "k3"). Static buffer rotated 4 ways. */
 const char *sl_ir_reg_name(const struct sl_program *prog, int32_t reg);
+
+/** Whether argument @k of @in is an output of its built-in (written, not read). */
+bool sl_ir_arg_is_output(const struct sl_insn *in, int k);
 
 /** Index of parameter @name, or -1. */
 int sl_program_find_param(const struct sl_program *prog, const char *name);

@@ -43,6 +43,16 @@ enum sl_shader_kind sl_program_kind(const struct sl_program *prog)
 	return prog->kind;
 }
 
+const struct sl_program *sl_program_atmosphere(const struct sl_program *prog)
+{
+	return prog->atmosphere;
+}
+
+const struct sl_program *sl_program_surface_part(const struct sl_program *prog)
+{
+	return prog->surface_part ? prog->surface_part : prog;
+}
+
 void sl_program_destroy(struct sl_program *prog)
 {
 	if (prog)
