@@ -145,6 +145,7 @@ static void join_code(struct join *j, const int32_t *copy_src, const int32_t *co
 		in->loc.file += s->nfiles;
 	}
 	p->body_begin = at + j->ncopies;
+	p->atmosphere_begin = (uint32_t)a_at(j, (int32_t)a->body_begin);
 }
 
 static bool has_param(const struct sl_program *s, const char *name)
@@ -165,8 +166,9 @@ static void join_params(struct join *j)
 		if (has_param(s, q.name))
 			q.name = rl_arena_printf(p->arena, "%s%s", SL_ATMOSPHERE_PREFIX, q.name);
 		q.reg = j->amap[q.reg];
-		q.init_begin = (uint32_t)a_at(j, (int32_t)q.init_begin);
-		q.init_end = (uint32_t)a_at(j, (int32_t)q.init_end);
+		/* the defaults' code moves as a block: its end may be the body's start */
+		q.init_begin += s->body_begin;
+		q.init_end += s->body_begin;
 		p->params[s->nparams + k] = q;
 	}
 }
@@ -220,4 +222,193 @@ struct sl_program *sl_program_compose(const struct sl_program *surf,
 	join_params(&j);
 	join_pools(&j);
 	return p;
+}
+
+/* ---- is the atmosphere a sum over lights? ---- */
+
+/*
+ * What a value of the atmosphere depends on: nothing that an edit of a light
+ * changes; one light, inside illuminance (L, Cl and what is made of them);
+ * or a sum over the lights (the surface's Ci, an accumulation over the
+ * lights, diffuse() and its kind).
+ */
+enum { DEP_NONE, DEP_LIGHT, DEP_SUM };
+
+struct affine {
+	const struct sl_program *p;
+	uint8_t *dep;           /* per register */
+	uint8_t *outside;       /* per register: read or written outside illuminance */
+	const char *why;
+	struct sl_loc at;
+	bool changed;
+};
+
+static bool is_read(const struct sl_insn *in, int k)
+{
+	return !sl_ir_arg_is_output(in, k);
+}
+
+static void refuse(struct affine *f, const struct sl_insn *in, const char *why)
+{
+	if (!f->why) {
+		f->why = why;
+		f->at = in->loc;
+	}
+}
+
+static void set_dep(struct affine *f, int32_t r, int d)
+{
+	if (r >= 0 && f->dep[r] < d) {
+		f->dep[r] = (uint8_t)d;
+		f->changed = true;
+	}
+}
+
+/* The dependence of what @in writes, from what it reads; refuses products of sums. */
+static int insn_dep(struct affine *f, const struct sl_insn *in, int ill)
+{
+	int nsum = 0, nlight = 0, m = DEP_NONE;
+	for (int k = 0; k < in->nargs; k++) {
+		if (!is_read(in, k))
+			continue;
+		int d = f->dep[in->args[k]];
+		nsum += d == DEP_SUM;
+		nlight += d == DEP_LIGHT;
+		m = d > m ? d : m;
+	}
+	if (in->op == SL_OP_SETCOMP || in->op == SL_OP_ASET) {
+		int d = f->dep[in->dst];
+		m = d > m ? d : m;
+	}
+	if (nlight && !ill)
+		refuse(f, in, "a light's value is used outside illuminance");
+	const struct sl_builtin *b = in->op == SL_OP_CALL && in->bi >= 0 ? &sl_builtins[in->bi]
+									 : NULL;
+	if (b && (b->flags & SL_BIF_LIGHTS)) {
+		if (nsum)
+			refuse(f, in, "the lights are sampled with the surface's colour");
+		return DEP_SUM;
+	}
+	if (!nsum)
+		return m;
+	switch (in->op) {
+	case SL_OP_MOV: case SL_OP_NEG: case SL_OP_ADD: case SL_OP_SUB: case SL_OP_COMP:
+	case SL_OP_SETCOMP: case SL_OP_TRIPLE: case SL_OP_ASET:
+		return m;
+	case SL_OP_AREF:
+		if (f->dep[in->args[1]] != DEP_NONE)
+			refuse(f, in, "an array is indexed by the surface's colour");
+		return m;
+	case SL_OP_MUL:
+		if (nsum + nlight > 1)
+			refuse(f, in, "the surface's colour is multiplied by itself or by a light");
+		return m;
+	case SL_OP_DIV:
+		if (f->dep[in->args[1]] != DEP_NONE)
+			refuse(f, in, "something is divided by the surface's colour or a light");
+		return m;
+	case SL_OP_SELECT:
+		if (f->dep[in->args[0]] != DEP_NONE)
+			refuse(f, in, "a choice depends on the surface's colour");
+		return m;
+	case SL_OP_CALL:
+		if (b && b->id == SL_BI_MIX && in->nargs == 3 && f->dep[in->args[2]] == DEP_NONE &&
+		    f->dep[in->args[0]] != DEP_LIGHT && f->dep[in->args[1]] != DEP_LIGHT)
+			return m;
+		refuse(f, in, "a built-in function of the surface's colour other than mix()");
+		return m;
+	default:
+		refuse(f, in, "the surface's colour is compared or branched on");
+		return m;
+	}
+}
+
+/* One pass over the atmosphere's body; f->changed when a dependence grew. */
+static void affine_pass(struct affine *f)
+{
+	const struct sl_program *p = f->p;
+	int ill = 0;
+	for (uint32_t pc = p->atmosphere_begin; pc < p->ncode && !f->why; pc++) {
+		const struct sl_insn *in = &p->code[pc];
+		if (in->op == SL_OP_ILLUMINANCE) {
+			ill++;
+			continue;
+		}
+		if (in->op == SL_OP_ILLUMINANCE_END) {
+			ill--;
+			continue;
+		}
+		if ((in->op == SL_OP_IF || in->op == SL_OP_LOOPTEST) && in->nargs &&
+		    f->dep[in->args[0]] == DEP_SUM) {
+			refuse(f, in, "a branch depends on the surface's colour");
+			break;
+		}
+		int d = insn_dep(f, in, ill);
+		/* a light's value kept past its iteration accumulates over the lights */
+		if (d == DEP_LIGHT && ill && in->dst >= 0 && f->outside[in->dst])
+			d = DEP_SUM;
+		set_dep(f, in->dst, d);
+		for (int k = 0; k < in->nargs && in->op == SL_OP_CALL; k++)
+			if (!is_read(in, k))
+				set_dep(f, in->args[k], d == DEP_LIGHT && f->outside[in->args[k]]
+								? DEP_SUM : d);
+	}
+}
+
+const char *sl_program_atmosphere_nonaffine(const struct sl_program *p, struct sl_loc *at)
+{
+	if (!p->atmosphere)
+		return NULL;
+	struct affine f = { .p = p };
+	f.dep = calloc(p->nregs + 1, 1);
+	f.outside = calloc(p->nregs + 1, 1);
+	if (!f.dep || !f.outside) {
+		free(f.dep);
+		free(f.outside);
+		return "out of memory";
+	}
+	int ill = 0;
+	for (uint32_t pc = p->atmosphere_begin; pc < p->ncode; pc++) {
+		const struct sl_insn *in = &p->code[pc];
+		ill += in->op == SL_OP_ILLUMINANCE;
+		ill -= in->op == SL_OP_ILLUMINANCE_END;
+		if (ill || in->op == SL_OP_ILLUMINANCE)
+			continue;
+		if (in->dst >= 0)
+			f.outside[in->dst] = 1;
+		for (int k = 0; k < in->nargs; k++)
+			f.outside[in->args[k]] = 1;
+	}
+	/* the surface's result is the sum over its lights */
+	f.dep[p->global_reg[SL_GLOBAL_CI]] = DEP_SUM;
+	static const enum sl_global light_globals[] = { SL_GLOBAL_L, SL_GLOBAL_CL, SL_GLOBAL_OL };
+	for (size_t g = 0; g < 3; g++)
+		if (p->global_reg[light_globals[g]] >= 0)
+			f.dep[p->global_reg[light_globals[g]]] = DEP_LIGHT;
+	/* loops carry dependences backwards: until nothing grows */
+	for (int pass = 0; pass < 64; pass++) {
+		f.changed = false;
+		affine_pass(&f);
+		if (!f.changed || f.why)
+			break;
+	}
+	free(f.dep);
+	free(f.outside);
+	if (f.why && at)
+		*at = f.at;
+	return f.why;
+}
+
+bool sl_program_report_nonaffine(const struct sl_program *p, FILE *diag, bool error)
+{
+	struct sl_loc at = { 0 };
+	const char *why = sl_program_atmosphere_nonaffine(p, &at);
+	if (!why)
+		return false;
+	const char *file = at.file < p->nfiles ? p->files[at.file] : p->atmosphere->name;
+	fprintf(diag, "%s:%u: %s: atmosphere '%s' after surface '%s': %s, so it is no sum over "
+		"the lights; the GPU preview, which adds the lights one at a time, differs from "
+		"the render (relight preview --cpu does not)\n", file, at.line,
+		error ? "error" : "warning", p->atmosphere->name, p->surface_part->name, why);
+	return true;
 }

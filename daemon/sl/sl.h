@@ -72,6 +72,9 @@ struct sl_program *sl_program_compose(const struct sl_program *surf,
 				      const struct sl_program *atm);
 #define SL_ATMOSPHERE_PREFIX "atmosphere_"
 
+/** Make the joined program @joined destroy its two parts when it is destroyed. */
+void sl_program_own_parts(struct sl_program *joined);
+
 /** The atmosphere a program of sl_program_compose() runs (NULL: none), and its surface. */
 const struct sl_program *sl_program_atmosphere(const struct sl_program *prog);
 const struct sl_program *sl_program_surface_part(const struct sl_program *prog);
