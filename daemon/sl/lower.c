@@ -224,10 +224,11 @@ static bool volume_global(enum sl_global g)
 
 static int32_t global(struct lower *l, enum sl_global g)
 {
-	if (l->kind == SL_SHADER_VOLUME && !volume_global(g))
-		sl_error(l->ctx, l->loc, "'%s' is not available in a volume shader (it sees P, I, "
-			 "E, Ci, Oi, time, and L, Cl inside illuminance)", sl_global_name(g));
 	if (l->global_reg[g] < 0) {
+		if (l->kind == SL_SHADER_VOLUME && !volume_global(g))
+			sl_error(l->ctx, l->loc, "'%s' is not available in a volume shader (it "
+				 "sees P, I, E, Ci, Oi, time, and L, Cl inside illuminance)",
+				 sl_global_name(g));
 		struct sl_type t = sl_global_type(g);
 		struct sl_loc none = { 0 };
 		int32_t r = new_reg(l, t.base, 0, SL_REG_GLOBAL,
