@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Volume shaders from the command line (the closed forms are in
 # tests/unit/test_atmosphere.c, the GPU preview in atmosphere_gpu.sh):
-#   - fog and depthcue compile as volume shaders; a volume shader that reads a
-#     surface's global (N) is an error at its line;
+#   - fog and depthcue compile as volume shaders, fog joins plastic (`compile
+#     --atmosphere`: its d is cached); a volume shader that reads a surface's
+#     global (N) is an error at its line;
 #   - Interior and Exterior render with a warning at their line, an error
 #     under --strict;
 #   - an atmosphere that is no sum over the lights (Ci * Ci) bakes with a
@@ -24,6 +25,13 @@ expect_stdout '"type": "volume"'
 run "compile depthcue" "$relight" compile "$source_dir/shaders/depthcue.sl"
 expect_status 0
 expect_empty_stderr
+run "compile a surface with an atmosphere" "$relight" compile --atmosphere fog --emit report plastic
+expect_status 0
+expect_stdout '"name": "plastic\+fog"'
+expect_stdout '"name": "d", "type": "float"'
+run "compile --atmosphere of a surface" "$relight" compile --atmosphere plastic plastic
+expect_status 1
+expect_stderr "'plastic' a surface shader"
 printf 'volume v()\n{\n\tfloat x = N . N;\n\tCi = x;\n}\n' >"$work/v.sl"
 run "a volume shader reads N" "$relight" compile "$work/v.sl"
 expect_status 1
