@@ -327,6 +327,13 @@ static bool emit_specialized(const struct sl_program *prog, const struct compile
 {
 	if (sl_program_kind(prog) == SL_SHADER_LIGHT && args->emit == EMIT_GLSL && !args->ndyn)
 		return emit_light_glsl(prog, mem);
+	if (sl_program_kind(prog) == SL_SHADER_VOLUME &&
+	    (args->emit == EMIT_CACHE || args->emit == EMIT_GLSL || args->ndyn)) {
+		fprintf(stderr, "relight compile: %s is a volume shader; it is specialized with the "
+			"surface it follows (relight compile --atmosphere %s SURFACE)\n",
+			args->input, sl_program_name(prog));
+		return false;
+	}
 	if (sl_program_kind(prog) != SL_SHADER_SURFACE) {
 		if (args->emit == EMIT_CACHE || args->ndyn) {
 			fprintf(stderr, "relight compile: %s is a %s shader; only surface shaders "
