@@ -1837,7 +1837,8 @@ static const struct reyes_shader *join_atmosphere(struct ri *ri, const struct re
 	memcpy(sh->shader_to_world, surf->shader_to_world, sizeof(sh->shader_to_world));
 	struct reyes_param_value *pv =
 		rl_arena_alloc(ar, sizeof(*pv) * (surf->nparams + atm->nparams + 1));
-	memcpy(pv, surf->params, sizeof(*pv) * surf->nparams);
+	if (surf->nparams)
+		memcpy(pv, surf->params, sizeof(*pv) * surf->nparams);
 	uint32_t n = surf->nparams;
 	uint32_t first = surf->prog->nparams;
 	for (uint32_t i = 0; i < atm->nparams; i++) {

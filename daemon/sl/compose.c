@@ -75,7 +75,8 @@ static void map_registers(struct join *j, int32_t *copy_src, int32_t *copy_dst)
 	struct sl_program *p = j->p;
 	uint32_t n = s->nregs;
 	p->regs = rl_arena_alloc(p->arena, sizeof(struct sl_reg) * (s->nregs + a->nregs + 1));
-	memcpy(p->regs, s->regs, sizeof(struct sl_reg) * s->nregs);
+	if (s->nregs)
+		memcpy(p->regs, s->regs, sizeof(struct sl_reg) * s->nregs);
 	memcpy(p->global_reg, s->global_reg, sizeof(p->global_reg));
 	for (uint32_t r = 0; r < a->nregs; r++) {
 		struct sl_reg g = a->regs[r];
@@ -159,7 +160,8 @@ static void join_params(struct join *j)
 	struct sl_program *p = j->p;
 	p->nparams = s->nparams + a->nparams;
 	p->params = rl_arena_alloc(p->arena, sizeof(struct sl_param) * (p->nparams + 1));
-	memcpy(p->params, s->params, sizeof(struct sl_param) * s->nparams);
+	if (s->nparams)
+		memcpy(p->params, s->params, sizeof(struct sl_param) * s->nparams);
 	for (uint32_t k = 0; k < a->nparams; k++) {
 		struct sl_param q = a->params[k];
 		/* one name, one parameter: the atmosphere's gives way */
