@@ -175,6 +175,55 @@ static void test_fog_lit(void)
 }
 
 /*
+ * Where an atmosphere binds: after the default surface of a primitive with no
+ * Surface, and inside an object definition (its instance takes it). A
+ * depthcue that is all background at the plane's depth (maxdistance 0.1,
+ * normalized depth 0.4) makes either exactly the background; the plane
+ * instanced outside the definition's scope, with no atmosphere of its own,
+ * stays the default surface's (not the background).
+ */
+static void test_where_it_binds(void)
+{
+	const char *rib =
+		"Format 32 16 1\n"
+		"Projection \"perspective\" \"fov\" 30\n"
+		"Clipping 1 11\n"
+		"Display \"bind.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+		"WorldBegin\n"
+		"  LightSource \"distantlight\" 1\n"
+		"  ObjectBegin \"right\"\n"
+		"    Atmosphere \"depthcue\" \"maxdistance\" 0.1 \"background\" [0.2 0.4 0.9]\n"
+		"    Polygon \"P\" [0 -10 5  10 -10 5  10 10 5  0 10 5]\n"
+		"  ObjectEnd\n"
+		"  AttributeBegin\n"
+		"    Atmosphere \"depthcue\" \"maxdistance\" 0.1 \"background\" [0.2 0.4 0.9]\n"
+		"    Polygon \"P\" [-10 -10 5  0 -10 5  0 10 5  -10 10 5]\n"
+		"  AttributeEnd\n"
+		"  ObjectInstance \"right\"\n"
+		"WorldEnd\n";
+	struct reyes_image im = { 0 };
+	CHECK(render(rib, "bind.exr", &im));
+	if (!im.data)
+		return;
+	double worst = 0;
+	for (int c = 0; c < 3; c++) {
+		int k = channel(&im, c == 0 ? "R" : c == 1 ? "G" : "B");
+		CHECK(k >= 0);
+		for (uint32_t y = 0; k >= 0 && y < im.height; y++)
+			for (uint32_t x = 0; x < im.width; x++) {
+				if (x == im.width / 2 - 1 || x == im.width / 2)
+					continue;
+				double err = fabs(px(&im, k, x, y) - BG[c]);
+				worst = err > worst ? err : worst;
+			}
+	}
+	printf("atmospheres after the default surface and in an object: worst error %.2g "
+	       "(tolerance 1e-6)\n", worst);
+	CHECK(worst <= 1e-6);
+	reyes_image_finish(&im);
+}
+
+/*
  * Interior and Exterior are bound and said to do nothing, with their line;
  * Atmosphere "null" unbinds (the plane keeps its colour).
  */
@@ -214,6 +263,7 @@ int main(void)
 	RUN(test_fog_plane);
 	RUN(test_depthcue_plane);
 	RUN(test_fog_lit);
+	RUN(test_where_it_binds);
 	RUN(test_interior_exterior);
 	scene_dir_remove();
 	return test_finish();
