@@ -178,9 +178,8 @@ static void test_fog_lit(void)
  * Where an atmosphere binds: after the default surface of a primitive with no
  * Surface, and inside an object definition (its instance takes it). A
  * depthcue that is all background at the plane's depth (maxdistance 0.1,
- * normalized depth 0.4) makes either exactly the background; the plane
- * instanced outside the definition's scope, with no atmosphere of its own,
- * stays the default surface's (not the background).
+ * normalized depth 0.4) makes either exactly the background (the instance
+ * is made where no atmosphere is bound: it has the definition's).
  */
 static void test_where_it_binds(void)
 {
