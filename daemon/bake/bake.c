@@ -138,6 +138,14 @@ static struct group *new_group(struct bake *b, const struct reyes_shader *surf)
 		free(dyn);
 		return NULL;
 	}
+	/* the GPU preview adds lights one at a time: say where that does not hold */
+	if (sl_program_report_nonaffine(prog, b->diag, b->o->strict)) {
+		if (b->o->strict) {
+			sl_spec_destroy(spec);
+			free(dyn);
+			return NULL;
+		}
+	}
 	if (opacity_dynamic(spec)) {
 		fprintf(b->diag, "relight: error: surface shader '%s': its opacity (Oi) depends on "
 			"the lights or on an editable parameter, so what each pixel sees cannot be "
@@ -490,7 +498,14 @@ static char *metadata(const struct bake *b, const struct bake_stats *st, const c
 		const struct sl_program *p = g->prog;
 		cJSON *j = cJSON_CreateObject();
 		cJSON_AddStringToObject(j, "shader", g->shader);
-		add_source(j, p, shot_dir);
+		add_source(j, sl_program_surface_part(p), shot_dir);
+		if (sl_program_atmosphere(p)) {
+			/* the atmosphere joined after the surface (sl_program_compose) */
+			const struct sl_program *a = sl_program_atmosphere(p);
+			cJSON *aj = cJSON_AddObjectToObject(j, "atmosphere");
+			cJSON_AddStringToObject(aj, "shader", sl_program_name(a));
+			add_source(aj, a, shot_dir);
+		}
 		cJSON_AddStringToObject(j, "table", g->table);
 		cJSON_AddNumberToObject(j, "first_id", g->first_id);
 		cJSON_AddNumberToObject(j, "samples", (double)g->rows);

@@ -46,6 +46,9 @@ static void usage(FILE *out)
 		"                                  shader's translation\n"
 		"  --dynamic P1,P2,...   Surface parameters a user may edit: specialize with\n"
 		"                        them dynamic as well as the lights\n"
+		"  --atmosphere VOLUME   Join the surface shader with the volume shader VOLUME\n"
+		"                        run after it (as RIB's Atmosphere does; looked up as\n"
+		"                        FILE.sl is) and print what --emit asks of the pair\n"
 		"  --strict              Light-dependent values the GPU cannot compute (they\n"
 		"                        are cached at bake time, a warning) are errors\n"
 		"  -I DIR, --include DIR\n"
@@ -172,6 +175,7 @@ struct compile_args {
 	char *dyn_buf;
 	const char *out_path;
 	const char *input;
+	const char *atmosphere;     /* --atmosphere */
 	const char **incs, **defs;
 	size_t nincs, ndefs;
 };
@@ -186,6 +190,7 @@ static int parse_args(int argc, char **argv, struct compile_args *args)
 		{ "output", required_argument, NULL, 'o' },
 		{ "dynamic", required_argument, NULL, 'y' },
 		{ "strict", no_argument, NULL, 's' },
+		{ "atmosphere", required_argument, NULL, 'a' },
 		{ "help", no_argument, NULL, 'h' },
 		{ NULL, 0, NULL, 0 },
 	};
@@ -215,6 +220,9 @@ static int parse_args(int argc, char **argv, struct compile_args *args)
 			break;
 		case 's':
 			args->strict = true;
+			break;
+		case 'a':
+			args->atmosphere = optarg;
 			break;
 		case 'y': {
 			/* a comma-separated list of parameter names */
@@ -261,6 +269,8 @@ static int parse_args(int argc, char **argv, struct compile_args *args)
 	if (argc - optind > 1)
 		return usage_error("one input file expected; extra argument '%s'",
 				   argv[optind + 1]);
+	if (args->atmosphere && args->emit == EMIT_AST)
+		return usage_error("--atmosphere needs the IR: not with --emit ast");
 	if (args->out_path && args->emit == EMIT_NONE)
 		return usage_error("-o needs --emit (there is nothing to write otherwise)");
 	args->input = argv[optind];
@@ -317,6 +327,13 @@ static bool emit_specialized(const struct sl_program *prog, const struct compile
 {
 	if (sl_program_kind(prog) == SL_SHADER_LIGHT && args->emit == EMIT_GLSL && !args->ndyn)
 		return emit_light_glsl(prog, mem);
+	if (sl_program_kind(prog) == SL_SHADER_VOLUME &&
+	    (args->emit == EMIT_CACHE || args->emit == EMIT_GLSL || args->ndyn)) {
+		fprintf(stderr, "relight compile: %s is a volume shader; it is specialized with the "
+			"surface it follows (relight compile --atmosphere %s SURFACE)\n",
+			args->input, sl_program_name(prog));
+		return false;
+	}
 	if (sl_program_kind(prog) != SL_SHADER_SURFACE) {
 		if (args->emit == EMIT_CACHE || args->ndyn) {
 			fprintf(stderr, "relight compile: %s is a %s shader; only surface shaders "
@@ -368,6 +385,38 @@ static bool emit_specialized(const struct sl_program *prog, const struct compile
 	return ok;
 }
 
+/*
+ * @surf joined with the volume shader named by --atmosphere (the pair owns
+ * both), or @surf itself without one; NULL (reported, @surf destroyed) when
+ * the volume shader is missing, does not compile, or either is of the wrong kind.
+ */
+static struct sl_program *with_atmosphere(struct sl_program *surf, const struct compile_args *args,
+					  const struct sl_options *opts)
+{
+	if (!surf || !args->atmosphere)
+		return surf;
+	char *path = find_shader(args->atmosphere);
+	struct sl_program *atm = path && is_file(path) ? sl_compile_file(path, opts) : NULL;
+	if (!path || !is_file(path))
+		fprintf(stderr, "relight compile: cannot open '%s': %s\n", args->atmosphere,
+			strerror(ENOENT));
+	free(path);
+	struct sl_program *j = atm ? sl_program_compose(surf, atm) : NULL;
+	if (atm && !j)
+		fprintf(stderr, "relight compile: --atmosphere joins a surface shader and a volume "
+			"shader; '%s' is a %s shader and '%s' a %s shader\n", sl_program_name(surf),
+			sl_shader_kind_name(sl_program_kind(surf)), sl_program_name(atm),
+			sl_shader_kind_name(sl_program_kind(atm)));
+	if (!j) {
+		sl_program_destroy(atm);
+		sl_program_destroy(surf);
+		return NULL;
+	}
+	sl_program_own_parts(j);
+	sl_program_report_nonaffine(j, stderr, args->strict);
+	return j;
+}
+
 /* Compile (or parse, for --emit ast) and print or write the result. */
 static int run(const struct compile_args *args)
 {
@@ -405,7 +454,7 @@ static int run(const struct compile_args *args)
 	if (args->emit == EMIT_AST) {
 		ok = sl_emit_ast_file(path, &opts, mem);
 	} else {
-		struct sl_program *prog = sl_compile_file(path, &opts);
+		struct sl_program *prog = with_atmosphere(sl_compile_file(path, &opts), args, &opts);
 		ok = prog != NULL;
 		if (prog && args->emit == EMIT_IR)
 			sl_emit(prog, SL_EMIT_IR, mem);

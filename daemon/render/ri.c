@@ -859,6 +859,9 @@ static bool right_handed(const struct ri *ri)
 	return flip;
 }
 
+static const struct reyes_shader *join_atmosphere(struct ri *ri, const struct reyes_shader *surf,
+						  const struct reyes_shader *atm);
+
 /* A bundle of the current attributes with transformation @x. */
 const struct reyes_attrs *reyes_ri_make_bundle(struct ri *ri, const struct xform *x)
 {
@@ -867,7 +870,7 @@ const struct reyes_attrs *reyes_ri_make_bundle(struct ri *ri, const struct xform
 	ri->gs.own_lights = NULL;       /* the bundle shares the light set */
 	memcpy(b->Cs, a->Cs, sizeof(b->Cs));
 	memcpy(b->Os, a->Os, sizeof(b->Os));
-	b->surface = a->surface;
+	b->surface = a->atmosphere ? join_atmosphere(ri, a->surface, a->atmosphere) : a->surface;
 	b->displacement = a->displacement;
 	b->lights = a->lights;
 	b->nlights = a->nlights;
@@ -1741,6 +1744,116 @@ static void req_surface(struct ri *ri, const struct rib_request *r)
 }
 
 /*
+ * Atmosphere, Interior, Exterior (RISpec 3.2 §4.1.8): volume shaders. An
+ * atmosphere changes the colour of the camera rays that reach the surfaces
+ * it is bound to, so relight runs it on every shading sample after the
+ * surface (reyes_ri_make_bundle). Interior and exterior shaders act on rays
+ * refracted into and reflected off a surface by trace(), which relight does
+ * not have: they are bound, and said to do nothing. "null" (RI_NULL) or ""
+ * unbinds.
+ */
+static void req_volume(struct ri *ri, const struct rib_request *r)
+{
+	const char *name;
+	if (!reyes_ri_str_arg(ri, r, 0, &name))
+		return;
+	const struct reyes_shader *sh = NULL;
+	if (name[0] && strcmp(name, "null") != 0) {
+		sh = make_shader(ri, r, SL_SHADER_VOLUME);
+		if (!sh)
+			return;
+	}
+	struct attrstate *a = &ri->gs.a;
+	if (!strcmp(r->name, "Atmosphere")) {
+		if (sh && !ri->default_surface) {
+			/* the surface of primitives that have none, which it follows */
+			const char *dflt = search_file(ri, "defaultsurface.sl", NULL,
+						       ri->opt.o.shader_path)
+						   ? "defaultsurface"
+						   : RELIGHT_SOURCE_SHADER_DIR "/defaultsurface.sl";
+			ri->default_surface = load_shader(ri, r, dflt, SL_SHADER_SURFACE);
+			if (!ri->default_surface)
+				return;
+		}
+		a->atmosphere = sh;
+		a->objset |= OBJ_ATMOSPHERE;
+		attrs_changed(ri);
+		return;
+	}
+	if (sh)
+		reyes_ri_warn(ri, r->loc, "%s shaders act on traced rays, which relight does not "
+			      "trace: no effect", r->name);
+	if (!strcmp(r->name, "Interior"))
+		a->interior = sh;
+	else
+		a->exterior = sh;
+}
+
+/*
+ * The program of @surf followed by @atm (sl_program_compose), made once per
+ * pair in a read, so that every primitive of the pair shares one program (the
+ * bake's group, the preview's kernels).
+ */
+static struct sl_program *joined_program(struct ri *ri, const struct sl_program *surf,
+					 const struct sl_program *atm)
+{
+	char key[64];
+	snprintf(key, sizeof(key), "%p+%p", (const void *)surf, (const void *)atm);
+	uintptr_t v;
+	if (strmap_get(&ri->joined, key, &v))
+		return (struct sl_program *)v;
+	struct sl_program *p = sl_program_compose(surf, atm);
+	if (!p)
+		return NULL;
+	rl_vec_push(ri->progs, p);
+	strmap_put(&ri->joined, rl_arena_strdup(ri->perm, key), (uintptr_t)p);
+	return p;
+}
+
+/*
+ * The shader instance that runs the surface @surf (NULL: the default
+ * surface) then the atmosphere @atm: the joined program with both
+ * instances' parameter values, the atmosphere's under the names the joined
+ * program gives them. Shader space is the surface's.
+ */
+static const struct reyes_shader *join_atmosphere(struct ri *ri, const struct reyes_shader *surf,
+						  const struct reyes_shader *atm)
+{
+	struct rl_arena *ar = ri->world;
+	struct reyes_shader *dflt = NULL;
+	if (!surf) {
+		dflt = rl_arena_alloc(ar, sizeof(*dflt));
+		dflt->name = "defaultsurface";
+		dflt->prog = ri->default_surface;
+		sl_m44_identity(dflt->shader_to_world);
+		surf = dflt;
+	}
+	struct sl_program *p = joined_program(ri, surf->prog, atm->prog);
+	if (!p)
+		return surf;
+	struct reyes_shader *sh = rl_arena_alloc(ar, sizeof(*sh));
+	sh->name = sl_program_name(p);
+	sh->prog = p;
+	memcpy(sh->shader_to_world, surf->shader_to_world, sizeof(sh->shader_to_world));
+	struct reyes_param_value *pv =
+		rl_arena_alloc(ar, sizeof(*pv) * (surf->nparams + atm->nparams + 1));
+	if (surf->nparams)
+		memcpy(pv, surf->params, sizeof(*pv) * surf->nparams);
+	uint32_t n = surf->nparams;
+	uint32_t first = surf->prog->nparams;
+	for (uint32_t i = 0; i < atm->nparams; i++) {
+		int k = sl_program_find_param(atm->prog, atm->params[i].name);
+		if (k < 0)
+			continue;
+		pv[n] = atm->params[i];
+		pv[n++].name = p->params[first + (uint32_t)k].name;
+	}
+	sh->params = pv;
+	sh->nparams = n;
+	return sh;
+}
+
+/*
  * Switches light @index on or off in the current light set: in place when
  * the set is not shared, else in a copy (with room to grow, so that a run
  * of LightSource requests takes linear time).
@@ -2221,6 +2334,9 @@ static const struct handler handlers[] = {
 	{"Opacity", req_color, 0},
 	{"Surface", req_surface, 0},
 	{"Displacement", req_surface, 0},
+	{"Atmosphere", req_volume, 0},
+	{"Interior", req_volume, 0},
+	{"Exterior", req_volume, 0},
 	{"LightSource", req_light_source, 0},
 	{"Illuminate", req_illuminate, 0},
 	{"Sides", req_sides, 0},
@@ -2443,6 +2559,7 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 	rl_vec_free(ri->spaces);
 	strmap_free(&ri->decls);
 	strmap_free(&ri->shader_cache);
+	strmap_free(&ri->joined);
 	strmap_free(&ri->shader_names);
 	strmap_free(&ri->names_indexed);
 	strmap_free(&ri->pre_space_index);

@@ -129,12 +129,16 @@ enum {
 	OBJ_MATTE = 1 << 12,
 	OBJ_DETAIL = 1 << 13,
 	OBJ_DETAIL_RANGE = 1 << 14,
+	OBJ_ATMOSPHERE = 1 << 15,
 };
 
 /* The attributes of the graphics state (the transformation aside). */
 struct attrstate {
 	float Cs[3], Os[3];
 	const struct reyes_shader *surface, *displacement;
+	/* Atmosphere, Interior, Exterior (NULL: none); the atmosphere runs after
+	   the surface, in the bundle's joined surface (reyes_ri_make_bundle) */
+	const struct reyes_shader *atmosphere, *interior, *exterior;
 	const uint32_t *lights;         /* indices of the lights that are on, ascending */
 	uint32_t nlights;
 	int sides;
@@ -263,6 +267,8 @@ struct ri {
 	struct rl_arena *perm;
 	struct strmap decls;              /* name -> struct decl * */
 	struct strmap shader_cache;       /* path + include path -> struct sl_program * (NULL: failed) */
+	struct strmap joined;             /* surface + atmosphere programs -> their joined program */
+	struct sl_program *default_surface; /* defaultsurface.sl, for an atmosphere with no Surface */
 	struct strmap shader_names;       /* search path + '\n' + declared name -> file path */
 	struct strmap names_indexed;      /* search paths whose .sl files were read for names */
 	RL_VEC(struct sl_program *) progs;

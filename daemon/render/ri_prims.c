@@ -1171,6 +1171,8 @@ static void instance_attrs(struct attrstate *a, const struct attrstate *def)
 		a->surface = def->surface;
 	if (set & OBJ_DISPLACEMENT)
 		a->displacement = def->displacement;
+	if (set & OBJ_ATMOSPHERE)
+		a->atmosphere = def->atmosphere;
 	if (set & OBJ_SIDES)
 		a->sides = def->sides;
 	if (set & OBJ_ORIENTATION)

@@ -97,6 +97,9 @@ static const struct reqdef reqdefs[] = {
 	{"Opacity", "r:n g:n b:n", BRACKET_OK},
 	{"Surface", "name:s", TAKES_PARAMS},
 	{"Displacement", "name:s", TAKES_PARAMS},
+	{"Atmosphere", "name:s", TAKES_PARAMS},
+	{"Interior", "name:s", TAKES_PARAMS},
+	{"Exterior", "name:s", TAKES_PARAMS},
 	{"LightSource", "name:s light:h", TAKES_PARAMS},
 	{"Illuminate", "light:h onoff:i", 0},
 	{"Sides", "nsides:i", 0},
@@ -160,10 +163,10 @@ static const struct reqdef reqdefs[] = {
  * misspelt names.
  */
 static const char *const unsupported[] = {
-	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Atmosphere", "Blobby",
+	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Blobby",
 	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Curves", "Deformation",
-	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Exterior", "Geometry", "IfBegin",
-	"IfEnd", "Imager", "Interior", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
+	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Geometry", "IfBegin",
+	"IfEnd", "Imager", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
 	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
 	"Shader", "SolidBegin", "SolidEnd", "SubdivisionMesh", "System", "TrimCurve",
 };

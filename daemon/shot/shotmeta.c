@@ -110,7 +110,30 @@ static bool same_program(const cJSON *o, const struct sl_program *p)
 	return sh && !strcmp(sl_program_source_hash(p), sh);
 }
 
+static struct sl_program *program_of(const cJSON *o, const char *shot, FILE *diag);
+
 struct sl_program *shot_meta_shader(const cJSON *o, const char *shot, FILE *diag)
+{
+	struct sl_program *p = program_of(o, shot, diag);
+	const cJSON *atm = cJSON_GetObjectItemCaseSensitive(o, "atmosphere");
+	if (!p || !atm)
+		return p;
+	/* a surface and its atmosphere, joined as the bake joined them */
+	struct sl_program *a = cJSON_IsObject(atm) ? program_of(atm, shot, diag) : NULL;
+	struct sl_program *j = a ? sl_program_compose(p, a) : NULL;
+	if (!j) {
+		if (a || !cJSON_IsObject(atm))
+			fprintf(diag ? diag : stderr, "relight: error: %s: the atmosphere of "
+				"surface '%s' is not a volume shader\n", shot, sl_program_name(p));
+		sl_program_destroy(a);
+		sl_program_destroy(p);
+		return NULL;
+	}
+	sl_program_own_parts(j);
+	return j;
+}
+
+static struct sl_program *program_of(const cJSON *o, const char *shot, FILE *diag)
 {
 	const char *src = shot_meta_str(o, "source");
 	if (!diag)

@@ -32,7 +32,9 @@ bool shot_meta_matrix(const cJSON *o, const char *key, float m[16]);
  * standard library, the first whose program is the one baked
  * ("program_hash": comments and white space do not count; "source_hash" for
  * shots that have none). NULL with "relight: error: SHOT: ..." on @diag
- * when none is found, compiles, or is the same program.
+ * when none is found, compiles, or is the same program. A surface entry with
+ * an "atmosphere" (an entry of the same form) gives the surface joined with
+ * it (sl_program_compose), which owns both.
  */
 struct sl_program *shot_meta_shader(const cJSON *o, const char *shot, FILE *diag);
 

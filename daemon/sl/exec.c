@@ -1959,7 +1959,8 @@ bool sl_exec_run(struct sl_exec *x, const struct sl_host *host)
 		fill_global(x, SL_GLOBAL_CI, 0.0f);
 		fill_global(x, SL_GLOBAL_OI, 1.0f);
 	}
-	if (prog->kind == SL_SHADER_SURFACE || prog->kind == SL_SHADER_LIGHT) {
+	if (prog->kind == SL_SHADER_SURFACE || prog->kind == SL_SHADER_LIGHT ||
+	    prog->kind == SL_SHADER_VOLUME) {
 		fill_global(x, SL_GLOBAL_L, 0.0f);
 		fill_global(x, SL_GLOBAL_CL, 0.0f);
 		fill_global(x, SL_GLOBAL_OL, 0.0f);

@@ -219,6 +219,12 @@ struct sl_program {
 	char source_hash[33];
 	/* Hash of the tokens compiled (sl_program_hash), as 32 hex digits. */
 	char program_hash[33];
+	/* A surface joined with its atmosphere (sl_program_compose): the two
+	   programs it was made from, which outlive it; else NULL. Its name is
+	   "SURFACE+ATMOSPHERE", its source and hashes the surface's. */
+	const struct sl_program *surface_part, *atmosphere;
+	bool owns_parts;         /* sl_program_destroy() destroys them too */
+	uint32_t atmosphere_begin;  /* the first instruction of the atmosphere's body */
 };
 
 /** Print one instruction as "  12  add %t3:color <- %Cs, %t2  ; file:line". */
@@ -227,6 +233,22 @@ void sl_ir_print_insn(const struct sl_program *prog, uint32_t i, FILE *out);
 void sl_ir_dump(const struct sl_program *prog, FILE *out);
 /** A register's printable name ("Ci", "Kd", "t12", "k3"). Static buffer rotated 4 ways. */
 const char *sl_ir_reg_name(const struct sl_program *prog, int32_t reg);
+
+/** Whether argument @k of @in is an output of its built-in (written, not read). */
+bool sl_ir_arg_is_output(const struct sl_insn *in, int k);
+
+/**
+ * Whether the atmosphere of a joined program (sl_program_compose) keeps the
+ * program a sum over its lights, as the GPU preview's one-light-at-a-time
+ * kernels need (docs/specialization.md): its colour affine in the surface's
+ * Ci with coefficients no light changes, its own light samples accumulated.
+ * NULL when it does (or there is no atmosphere), else why not, and where in
+ * *@at.
+ */
+const char *sl_program_atmosphere_nonaffine(const struct sl_program *p, struct sl_loc *at);
+
+/** Say so on @diag, as FILE:LINE: a warning or an @error; true when it is not a sum. */
+bool sl_program_report_nonaffine(const struct sl_program *p, FILE *diag, bool error);
 
 /** Index of parameter @name, or -1. */
 int sl_program_find_param(const struct sl_program *prog, const char *name);

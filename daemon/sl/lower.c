@@ -48,6 +48,7 @@ struct lower {
 	 * there is one value for the grid, as in prman. */
 	bool uniform_ctx;
 	RL_VEC(struct sl_uniform_ref) urefs;
+	enum sl_shader_kind kind;
 };
 
 static const char *const global_names[SL_GLOBAL_COUNT] = {
@@ -206,9 +207,32 @@ static int32_t const_string(struct lower *l, const char *s)
 	return r;
 }
 
+/*
+ * Whether a volume shader sees global @g (RISpec 3.2 Table 4.4): the ray,
+ * its colour and opacity, the lights inside illuminance, time. It is not
+ * attached to a surface, so the surface's geometry (N, s, t, Cs...) is not
+ * there to read.
+ */
+static bool volume_global(enum sl_global g)
+{
+	switch (g) {
+	case SL_GLOBAL_P: case SL_GLOBAL_I: case SL_GLOBAL_E: case SL_GLOBAL_CI:
+	case SL_GLOBAL_OI: case SL_GLOBAL_L: case SL_GLOBAL_CL: case SL_GLOBAL_OL:
+	case SL_GLOBAL_NCOMPS: case SL_GLOBAL_TIME: case SL_GLOBAL_DTIME:
+	case SL_GLOBAL_DU: case SL_GLOBAL_DV:
+		return true;
+	default:
+		return false;
+	}
+}
+
 static int32_t global(struct lower *l, enum sl_global g)
 {
 	if (l->global_reg[g] < 0) {
+		if (l->kind == SL_SHADER_VOLUME && !volume_global(g))
+			sl_error(l->ctx, l->loc, "'%s' is not available in a volume shader (it "
+				 "sees P, I, E, Ci, Oi, time, and L, Cl inside illuminance)",
+				 sl_global_name(g));
 		struct sl_type t = sl_global_type(g);
 		struct sl_loc none = { 0 };
 		int32_t r = new_reg(l, t.base, 0, SL_REG_GLOBAL,
@@ -1030,7 +1054,7 @@ static bool shader_has_return(const struct sl_ast *st)
 
 struct sl_program *sl_lower(struct sl_ctx *ctx, struct sl_ast *shader)
 {
-	struct lower l = { .ctx = ctx };
+	struct lower l = { .ctx = ctx, .kind = (enum sl_shader_kind)shader->op };
 	for (int g = 0; g < SL_GLOBAL_COUNT; g++)
 		l.global_reg[g] = -1;
 	struct frame top = { 0 };
@@ -1058,6 +1082,10 @@ struct sl_program *sl_lower(struct sl_ctx *ctx, struct sl_ast *shader)
 	case SL_SHADER_DISPLACEMENT:
 		global(&l, SL_GLOBAL_P);
 		global(&l, SL_GLOBAL_N);
+		break;
+	case SL_SHADER_VOLUME:
+		global(&l, SL_GLOBAL_CI);
+		global(&l, SL_GLOBAL_OI);
 		break;
 	default:
 		break;

@@ -43,10 +43,31 @@ enum sl_shader_kind sl_program_kind(const struct sl_program *prog)
 	return prog->kind;
 }
 
+const struct sl_program *sl_program_atmosphere(const struct sl_program *prog)
+{
+	return prog->atmosphere;
+}
+
+const struct sl_program *sl_program_surface_part(const struct sl_program *prog)
+{
+	return prog->surface_part ? prog->surface_part : prog;
+}
+
+void sl_program_own_parts(struct sl_program *joined)
+{
+	joined->owns_parts = joined->surface_part != NULL;
+}
+
 void sl_program_destroy(struct sl_program *prog)
 {
-	if (prog)
-		rl_arena_destroy(prog->arena);
+	if (!prog)
+		return;
+	if (prog->owns_parts) {
+		/* the parts were made for this program alone */
+		sl_program_destroy((struct sl_program *)(uintptr_t)prog->surface_part);
+		sl_program_destroy((struct sl_program *)(uintptr_t)prog->atmosphere);
+	}
+	rl_arena_destroy(prog->arena);
 }
 
 /* Read a whole file; NULL (and a message) on failure. */

@@ -1307,7 +1307,7 @@ static void declare_globals(struct sema *s)
 static void check_shader(struct sema *s, struct sl_ast *sh)
 {
 	s->kind = (enum sl_shader_kind)sh->op;
-	if (s->kind == SL_SHADER_VOLUME || s->kind == SL_SHADER_IMAGER)
+	if (s->kind == SL_SHADER_IMAGER)
 		sl_error(s->ctx, sh->loc, "%s shaders are not supported by relight",
 			 sl_shader_kind_name(s->kind));
 	push_scope(s);

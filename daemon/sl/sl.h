@@ -59,6 +59,26 @@ char *sl_declared_name(const char *path, const char *src, size_t len,
 /** Free a program. Accepts NULL. */
 void sl_program_destroy(struct sl_program *prog);
 
+/**
+ * The surface shader @surf followed, on every shading sample, by the volume
+ * shader @atm as its atmosphere (RISpec: the atmosphere reads and changes the
+ * surface's Ci and Oi; its P and I are the surface's): one surface program,
+ * named "SURFACE+ATMOSPHERE", with the surface's parameters then the
+ * atmosphere's. An atmosphere parameter whose name the surface has too is
+ * renamed SL_ATMOSPHERE_PREFIX + name. @surf and @atm must outlive the
+ * result. NULL when @surf is no surface or @atm no volume shader.
+ */
+struct sl_program *sl_program_compose(const struct sl_program *surf,
+				      const struct sl_program *atm);
+#define SL_ATMOSPHERE_PREFIX "atmosphere_"
+
+/** Make the joined program @joined destroy its two parts when it is destroyed. */
+void sl_program_own_parts(struct sl_program *joined);
+
+/** The atmosphere a program of sl_program_compose() runs (NULL: none), and its surface. */
+const struct sl_program *sl_program_atmosphere(const struct sl_program *prog);
+const struct sl_program *sl_program_surface_part(const struct sl_program *prog);
+
 /** What to print with sl_emit(). */
 enum sl_emit_kind {
 	SL_EMIT_AST,    /* the parsed tree, one node a line */

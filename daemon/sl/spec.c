@@ -697,6 +697,11 @@ static void mark_derivatives(struct sl_spec *s, unsigned flags)
 	free(is_cached);
 }
 
+bool sl_ir_arg_is_output(const struct sl_insn *in, int k)
+{
+	return arg_is_output(in, k);
+}
+
 static void add_unique(int32_t **v, uint32_t *n, int32_t r)
 {
 	for (uint32_t i = 0; i < *n; i++)

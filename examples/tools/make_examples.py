@@ -317,6 +317,50 @@ FrameEnd
 """ % dict(cam=look_at((0, 2, -1.5), (0, 0.8, 3)), floor=quad(0, 5))
 write("examples/displaced/displaced.rib", displaced)
 
+# ---- fog: atmospheres, one of them lit ----
+fog_scene = """##RenderMan RIB
+# %(what)s 240x135.
+version 3.04
+FrameBegin 1
+  Format 240 135 1
+  PixelSamples 2 2
+  Projection "perspective" "fov" 45
+  Display "%(name)s.exr" "file" "rgba"
+%(option)s  %(cam)s
+  WorldBegin
+    LightSource "pointlight" 1 "intensity" 6 "from" [-1.5 2.5 2]
+    LightSource "spotlight" 2 "intensity" 12 "from" [2 3 1] "to" [0 0 5] "coneangle" 0.5
+    LightSource "ambientlight" 3 "intensity" 0.05
+    %(atmosphere)s
+    AttributeBegin
+      Surface "matte"
+      Color [0.6 0.6 0.55]
+      %(floor)s
+    AttributeEnd
+%(spheres)s  WorldEnd
+FrameEnd
+"""
+fog_spheres = ""
+for i, (x, z, c) in enumerate([(-1.2, 2.5, "0.9 0.3 0.2"), (0.4, 4.5, "0.2 0.6 0.9"),
+                               (1.6, 7.5, "0.9 0.8 0.3"), (-0.6, 11, "0.4 0.9 0.4")]):
+    fog_spheres += """    AttributeBegin
+      Surface "plastic" "roughness" 0.15
+      Color [%s]
+      Translate %g 0.6 %g
+      Sphere 0.6 -0.6 0.6 360
+    AttributeEnd
+""" % (c, x, z)
+fog_common = dict(cam=look_at((0, 1.2, -1), (0, 0.6, 5)), floor=quad(0, 14), spheres=fog_spheres)
+write("examples/fog/fog.rib", fog_scene % dict(fog_common, name="fog", option="",
+    what="Atmosphere: RISpec's fog (exponential, bluish) over plastic spheres receding along a\n"
+         "# matte floor, a point, a spot and an ambient light.",
+    atmosphere='Atmosphere "fog" "distance" 8 "background" [0.35 0.4 0.5]'))
+write("examples/fog/glow.rib", fog_scene % dict(fog_common, name="glow",
+    option='  Option "searchpath" "shader" ".:@"\n',
+    what="An atmosphere that reads the lights: glow.sl (beside this file) is fog plus the light\n"
+         "# it scatters towards the eye; the same set as fog.rib.",
+    atmosphere='Atmosphere "glow" "distance" 8 "background" [0.1 0.1 0.12] "scatter" 0.04'))
+
 # ---- crowd: a street crowd at 8x8 samples, most of what is shaded hidden ----
 def lcg(seed):
     """A small deterministic generator, so the scene does not depend on Python's."""

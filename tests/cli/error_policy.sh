@@ -19,7 +19,7 @@ identical() {
 
 # ---- every unsupported request of RiSpec 3.2: one warning each, the rest renders ----
 requests="10:ColorSamples 12:ClippingPlane 13:Imager 14:ErrorHandler
-15:Perspective 19:AreaLightSource 21:Atmosphere 22:Interior 23:Exterior 24:Bound
+15:Perspective 19:AreaLightSource 21:Resource 22:Shader 23:DisplayChannel 24:Bound
 25:Deformation 26:ArchiveRecord 27:ScopedCoordinateSystem 28:MakeBump 33:SolidBegin
 34:SolidEnd 35:NuPatch 36:TrimCurve 37:SubdivisionMesh 38:Points 39:Curves 40:Blobby
 41:Procedural 42:Geometry"
@@ -131,7 +131,7 @@ expect_true "the others did not render as without them" identical args_good.exr 
 
 # ---- one line per cause and place: an archive read 10000 times ----
 mkdir -p "$work/loop"
-printf 'Atmosphere "fog"\nSurface "plastic" "Kdd" 1\n' >"$work/loop/fog.rib"
+printf 'Shader "plastic" "co"\nSurface "plastic" "Kdd" 1\n' >"$work/loop/fog.rib"
 {
 	printf 'Format 16 16 1\nDisplay "loop.exr" "file" "rgba"\nWorldBegin\nTranslate 0 0 5\n'
 	for i in $(seq 10000); do printf 'ReadArchive "fog.rib"\n'; done
@@ -143,7 +143,7 @@ expect_status 0
 checks=$((checks + 1))
 n=$(grep -c 'warning:' "$work/stderr")
 [ "$n" -eq 2 ] || fail "$n warning lines, expected 2 (one per place)"
-expect_stderr '^(\./)?fog.rib:1: warning: Atmosphere is not supported: ignored$'
+expect_stderr '^(\./)?fog.rib:1: warning: Shader is not supported: ignored$'
 expect_stderr "^(\./)?fog.rib:2: warning: shader 'plastic' has no parameter 'Kdd': ignored$"
 expect_stderr '^relight render: 1 of 1 frame rendered, 2 warnings \(19998 repeats not shown\), 0 errors$'
 
@@ -209,14 +209,14 @@ checks=$((checks + 1))
 run "bake with warnings" bash -c "cd '$work' && '$relight' bake -o warned.shot.exr unsupported.rib"
 expect_no_crash
 expect_status 0
-expect_stderr '^unsupported.rib:21: warning: Atmosphere is not supported: ignored$'
+expect_stderr '^unsupported.rib:21: warning: Resource is not supported: ignored$'
 expect_stderr "^unsupported.rib: $nrequests warnings \(0 repeats not shown\), 0 errors, 0 primitives dropped$"
 checks=$((checks + 1))
 [ -s "$work/warned.shot.exr" ] || fail "no shot written"
 run "bake --strict" bash -c "cd '$work' && '$relight' bake --strict -o strict.shot.exr unsupported.rib"
 expect_no_crash
 expect_status 1
-expect_stderr '^unsupported.rib:21: error: Atmosphere is not supported: ignored \(an error under --strict\)$'
+expect_stderr '^unsupported.rib:21: error: Resource is not supported: ignored \(an error under --strict\)$'
 checks=$((checks + 1))
 [ ! -e "$work/strict.shot.exr" ] || fail "--strict baked the shot"
 

@@ -72,7 +72,9 @@ if command -v glslangValidator >/dev/null 2>&1; then
 	for sl in "$source_dir"/shaders/*.sl; do
 		name=$(basename "$sl" .sl)
 		case "$name" in noisebump|null_displacement) continue ;; esac   # displacement: not on the GPU
-		run "glsl of $name" "$relight" compile --emit glsl -o "$work/$name.comp" "$sl"
+		# a volume shader runs on the GPU joined after its surface
+		case "$name" in fog|depthcue) set -- --atmosphere "$sl" plastic ;; *) set -- "$sl" ;; esac
+		run "glsl of $name" "$relight" compile --emit glsl -o "$work/$name.comp" "$@"
 		expect_status 0
 		run "glslangValidator accepts $name" glslangValidator "$work/$name.comp"
 		expect_status 0

@@ -193,6 +193,8 @@ static const struct {
 	  "intensity lightcolor from to coneangle conedeltaangle beamdistribution shadowname "
 	  "samples blur bias width" },
 	{ "uberlight", SL_SHADER_LIGHT, NULL },
+	{ "fog", SL_SHADER_VOLUME, "distance background" },
+	{ "depthcue", SL_SHADER_VOLUME, "mindistance maxdistance background" },
 };
 
 static void shader_dir(char *buf, size_t size)

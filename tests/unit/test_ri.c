@@ -1177,9 +1177,9 @@ static void test_error_policy(void)
 	int n;
 
 	/* An unsupported and an unknown request: warnings, the frame renders. */
-	CHECK(run_opts("WorldBegin\nAtmosphere \"fog\"\nSphre 1 -1 1 360\nSphere 1 -1 1 360\n"
+	CHECK(run_opts("WorldBegin\nShader \"plastic\" \"co\"\nSphre 1 -1 1 360\nSphere 1 -1 1 360\n"
 		       "WorldEnd\n", count_prims, &o, &n));
-	CHECK_DIAG(test_fmt("%s:2: warning: Atmosphere is not supported: ignored\n"
+	CHECK_DIAG(test_fmt("%s:2: warning: Shader is not supported: ignored\n"
 			    "%s:3: warning: unknown request 'Sphre' ignored; did you mean "
 			    "'Sphere'?\n", rib_path, rib_path));
 	CHECK(frames == 1 && last_nprims == 1);
@@ -1225,14 +1225,14 @@ static void test_error_policy(void)
 	CHECK(frames == 0 && c.fatal == 2);
 
 	/* One line per message and place: an archive read 50 times reports once. */
-	put("arch/fog.rib", "Atmosphere \"fog\"\nSurface \"plastic\" \"Kdd\" 1\n");
+	put("arch/fog.rib", "Shader \"plastic\" \"co\"\nSurface \"plastic\" \"Kdd\" 1\n");
 	struct rl_strbuf b = {0};
 	rl_strbuf_printf(&b, "WorldBegin\n");
 	for (int i = 0; i < 50; i++)
 		rl_strbuf_printf(&b, "ReadArchive \"%s/arch/fog.rib\"\n", dir);
 	rl_strbuf_printf(&b, "Sphere 1 -1 1 360\nWorldEnd\n");
 	CHECK(run_opts(rl_strbuf_str(&b), count_prims, &o, &n));
-	CHECK_STR(diag, test_fmt("%s/arch/fog.rib:1: warning: Atmosphere is not supported: ignored\n"
+	CHECK_STR(diag, test_fmt("%s/arch/fog.rib:1: warning: Shader is not supported: ignored\n"
 			    "%s/arch/fog.rib:2: warning: shader 'plastic' has no parameter 'Kdd': "
 			    "ignored\n", dir, dir));
 	CHECK(frames == 1 && c.warnings == 2 && c.repeats == 98 && c.errors == 0);
@@ -1240,7 +1240,7 @@ static void test_error_policy(void)
 	/* --strict: every warning an error, the frame held back. */
 	o.strict = true;
 	CHECK(!run_opts(rl_strbuf_str(&b), NULL, &o, &n));
-	CHECK_DIAG(test_fmt("%s/arch/fog.rib:1: error: Atmosphere is not supported: ignored (an "
+	CHECK_DIAG(test_fmt("%s/arch/fog.rib:1: error: Shader is not supported: ignored (an "
 			    "error under --strict)\n", dir));
 	CHECK(frames == 0 && c.warnings == 0 && c.errors == 2 && c.fatal == 2);
 	o.strict = false;

@@ -803,6 +803,137 @@ static void test_dynamic_library(void)
 	light_set_free(&ls);
 }
 
+/* A volume shader of the library, or of examples/fog/ (glow, which reads the lights). */
+static struct sl_program *load_volume(const char *name)
+{
+	if (strcmp(name, "glow"))
+		return load(name);
+	const char *dir = getenv("RELIGHT_SOURCE_DIR");
+	char path[1024];
+	snprintf(path, sizeof(path), "%s/examples/fog/glow.sl", dir ? dir : ".");
+	return sl_compile_file(path, NULL);
+}
+
+static const char *const volumes[] = { "fog", "depthcue", "glow" };
+
+/*
+ * A surface joined with an atmosphere (sl_program_compose) is the surface
+ * then the atmosphere: the joined program's Ci and Oi equal those of the
+ * surface run alone and the atmosphere run after it on its Ci, Oi and the
+ * same P, I, E and lights, bit for bit; and the joined program splits as any
+ * surface (every surface of shaders/ with fog, depthcue and glow, all ways of
+ * test_dynamic_library).
+ */
+static void test_atmospheres(void)
+{
+	struct light_set ls;
+	library_lights(&ls, 91);
+	struct tally t = { 0 };
+	int stages = 0;
+	for (size_t k = 0; k < NSURF; k++)
+		for (size_t v = 0; v < sizeof(volumes) / sizeof(volumes[0]); v++) {
+			struct sl_program *surf = load(surfaces[k]), *atm = load_volume(volumes[v]);
+			CHECK(surf && atm);
+			struct sl_program *j = surf && atm ? sl_program_compose(surf, atm) : NULL;
+			CHECK(j != NULL);
+			if (!j) {
+				sl_program_destroy(surf);
+				sl_program_destroy(atm);
+				continue;
+			}
+			char label[128];
+			snprintf(label, sizeof(label), "%s+%s", surfaces[k], volumes[v]);
+			/* two stages against the joined program */
+			struct inputs in;
+			rng_seed(5 + (uint32_t)(k * 3 + v));
+			inputs_init(&in, j, 1.0f / (NU - 1));
+			struct sl_exec *xs = sl_exec_create(surf, NPTS), *xa = sl_exec_create(atm, NPTS);
+			struct sl_exec *xj = sl_exec_create(j, NPTS);
+			CHECK(xs && xa && xj);
+			if (xs && xa && xj) {
+				inputs_set(&in, xs);
+				inputs_set(&in, xa);
+				inputs_set(&in, xj);
+				CHECK(run_lit(xs, ls.x, ls.n));
+				bool vary;
+				for (int g = SL_GLOBAL_CI; g <= SL_GLOBAL_OI; g++) {
+					float *d = sl_exec_global(xa, (enum sl_global)g, &vary);
+					const float *sv = sl_exec_reg(xs, surf->global_reg[g]);
+					uint32_t st = sl_exec_stride(xa);
+					for (int c = 0; d && sv && c < 3; c++)
+						for (uint32_t i = 0; i < NPTS; i++)
+							d[(size_t)c * st + i] = sv[(size_t)c * sl_exec_stride(xs) + i];
+				}
+				CHECK(run_lit(xa, ls.x, ls.n));
+				CHECK(run_lit(xj, ls.x, ls.n));
+				int same = 0;
+				for (int g = SL_GLOBAL_CI; g <= SL_GLOBAL_OI; g++) {
+					const float *a = sl_exec_reg(xa, atm->global_reg[g]);
+					const float *b = sl_exec_reg(xj, j->global_reg[g]);
+					for (int c = 0; a && b && c < 3; c++)
+						for (uint32_t i = 0; i < NPTS; i++)
+							same += a[(size_t)c * sl_exec_stride(xa) + i] ==
+								b[(size_t)c * sl_exec_stride(xj) + i];
+				}
+				CHECK(same == 2 * 3 * NPTS);
+				stages++;
+			}
+			sl_exec_destroy(xs);
+			sl_exec_destroy(xa);
+			sl_exec_destroy(xj);
+			inputs_finish(&in);
+			sl_program_own_parts(j);
+			bool lit = strcmp(surfaces[k], "constant") &&
+				   strcmp(surfaces[k], "defaultsurface");
+			compare_all_ways(label, j, &ls, 3000u + (uint32_t)(k * 3 + v), &t,
+					 lit || !strcmp(volumes[v], "glow"));
+			sl_program_destroy(j);
+		}
+	printf("atmospheres: %d two-stage comparisons bit for bit; %d specialized, %ld values, "
+	       "max diff %.2e (tol %.0e)\n", stages, t.cases, t.values, t.maxerr, DYN_TOL);
+	CHECK(stages == (int)(NSURF * 3));
+	CHECK(t.maxerr <= DYN_TOL);
+	light_set_free(&ls);
+}
+
+/* Which atmospheres keep a surface a sum over its lights (the GPU's one light at a time). */
+static void test_atmosphere_affine(void)
+{
+	static const struct {
+		const char *src;
+		bool affine;
+	} cases[] = {
+		{ "volume a(color bg = 1) { Ci = mix(Ci, bg, 0.3); }", true },
+		{ "volume a(float k = 2) { Ci = k * Ci + 0.1; Oi = Oi * 0.5; }", true },
+		{ "volume a() { color g = 0; illuminance(P) { g += Cl * (1 + L . L); }"
+		  " Ci = Ci * 0.5 + g; }", true },
+		{ "volume a() { Ci = Ci * Ci; }", false },
+		{ "volume a() { Ci = Ci / (1 + Ci); }", false },
+		{ "volume a() { if (comp(Ci, 0) > 0.5) Ci = 0; }", false },
+		{ "volume a() { Ci = sqrt(Ci); }", false },
+		{ "volume a() { Ci = mix(Ci, 1, comp(Ci, 1)); }", false },
+		{ "volume a() { illuminance(P) { Ci += Ci * Cl; } }", false },
+	};
+	struct sl_program *surf = load("plastic");
+	CHECK(surf != NULL);
+	for (size_t i = 0; surf && i < sizeof(cases) / sizeof(cases[0]); i++) {
+		struct sl_program *a = sl_compile_string("a.sl", cases[i].src, strlen(cases[i].src),
+							 NULL);
+		CHECK(a != NULL);
+		struct sl_program *j = a ? sl_program_compose(surf, a) : NULL;
+		CHECK(j != NULL);
+		struct sl_loc at;
+		const char *why = j ? sl_program_atmosphere_nonaffine(j, &at) : NULL;
+		if ((why == NULL) != cases[i].affine)
+			fprintf(stderr, "atmosphere %zu (%s): %s\n", i, cases[i].src,
+				why ? why : "affine");
+		CHECK((why == NULL) == cases[i].affine);
+		sl_program_destroy(j);
+		sl_program_destroy(a);
+	}
+	sl_program_destroy(surf);
+}
+
 /*
  * Shapes of dynamic code the library does not have: accumulation into a
  * variable given a static start, loops around light-dependent code, break,
@@ -1556,6 +1687,8 @@ int main(void)
 	RUN(test_errors);
 	init_spaces();
 	RUN(test_dynamic_library);
+	RUN(test_atmospheres);
+	RUN(test_atmosphere_affine);
 	RUN(test_dynamic_shapes);
 	RUN(test_dynamic_marble);
 	RUN(test_dynamic_any_order);
