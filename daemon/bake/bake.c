@@ -476,6 +476,15 @@ static char *metadata(const struct bake *b, const struct bake_stats *st, const c
 		cJSON_AddItemToObject(j, "shader_to_world", matrix_json(l->shader.shader_to_world));
 		cJSON_AddItemToArray(lights, j);
 	}
+	if (so->imager) {
+		/* the preview runs it after its resolve, with these values (imager.h) */
+		cJSON *j = cJSON_AddObjectToObject(root, "imager");
+		cJSON_AddStringToObject(j, "shader", so->imager->name);
+		add_source(j, so->imager->prog, shot_dir);
+		cJSON_AddItemToObject(j, "params", params_json(so->imager));
+		cJSON_AddNumberToObject(j, "time", so->shutter[0]);
+		cJSON_AddNumberToObject(j, "dtime", so->shutter[1] - so->shutter[0]);
+	}
 	cJSON *sets = cJSON_AddArrayToObject(root, "lightsets");
 	for (size_t i = 0; i < b->lightsets.len; i++) {
 		const struct reyes_attrs *a = b->lightsets.data[i];

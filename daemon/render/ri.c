@@ -1700,7 +1700,7 @@ static bool shader_params(struct ri *ri, const struct rib_request *r, const char
 	return ok;
 }
 
-/* A shader instance for a Surface, Displacement or LightSource request. */
+/* A shader instance for a Surface, Displacement, LightSource or Imager request. */
 static struct reyes_shader *make_shader(struct ri *ri, const struct rib_request *r,
 					enum sl_shader_kind want)
 {
@@ -1738,6 +1738,26 @@ static void req_surface(struct ri *ri, const struct rib_request *r)
 		ri->gs.a.displacement = sh;
 	ri->gs.a.objset |= surf ? OBJ_SURFACE : OBJ_DISPLACEMENT;
 	attrs_changed(ri);
+}
+
+/*
+ * Imager "name" params: an option (RISpec 3.2), kept with the frame's
+ * options; "null" turns the imager off.
+ */
+static void req_imager(struct ri *ri, const struct rib_request *r)
+{
+	const char *name;
+	if (!option_ok(ri, r) || !reyes_ri_str_arg(ri, r, 0, &name))
+		return;
+	if (strcmp(name, "null") == 0) {
+		ri->opt.o.imager = NULL;
+		return;
+	}
+	struct reyes_shader *sh = make_shader(ri, r, SL_SHADER_IMAGER);
+	if (!sh)
+		return;
+	ri->opt.o.imager = sh;
+	ri->opt.o.imager_loc = r->loc;
 }
 
 /*
@@ -2220,6 +2240,7 @@ static const struct handler handlers[] = {
 	{"Color", req_color, 0},
 	{"Opacity", req_color, 0},
 	{"Surface", req_surface, 0},
+	{"Imager", req_imager, 0},
 	{"Displacement", req_surface, 0},
 	{"LightSource", req_light_source, 0},
 	{"Illuminate", req_illuminate, 0},

@@ -96,6 +96,7 @@ static const struct reqdef reqdefs[] = {
 	{"Color", "r:n g:n b:n", BRACKET_OK},
 	{"Opacity", "r:n g:n b:n", BRACKET_OK},
 	{"Surface", "name:s", TAKES_PARAMS},
+	{"Imager", "name:s", TAKES_PARAMS},
 	{"Displacement", "name:s", TAKES_PARAMS},
 	{"LightSource", "name:s light:h", TAKES_PARAMS},
 	{"Illuminate", "light:h onoff:i", 0},
@@ -163,7 +164,7 @@ static const char *const unsupported[] = {
 	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Atmosphere", "Blobby",
 	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Curves", "Deformation",
 	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Exterior", "Geometry", "IfBegin",
-	"IfEnd", "Imager", "Interior", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
+	"IfEnd", "Interior", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
 	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
 	"Shader", "SolidBegin", "SolidEnd", "SubdivisionMesh", "System", "TrimCurve",
 };

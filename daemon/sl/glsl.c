@@ -2221,7 +2221,9 @@ char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lig
 
 	if (!check_slice(g, s, lights, nlights))
 		goto out;
-	if (s->prog->kind != SL_SHADER_SURFACE)
+	/* An imager's pixels are samples like a surface's: its inputs and
+	 * outputs are the slice's, and it calls no light. */
+	if (s->prog->kind != SL_SHADER_SURFACE && s->prog->kind != SL_SHADER_IMAGER)
 		sl_glsl_warning(g, NULL, "emitting a %s shader as a surface",
 				sl_shader_kind_name(s->prog->kind));
 	if (!prepare(g, &g->sp, s->prog, -1))
