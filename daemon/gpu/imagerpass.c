@@ -296,6 +296,21 @@ bool gpu_imager_get(const struct gpu_imager *im, const char *param, float out[16
 	return true;
 }
 
+bool gpu_imager_param(const struct gpu_imager *im, uint32_t k, const char **name, int *type,
+		      uint32_t *n, float value[16])
+{
+	uint32_t seen = 0;
+	for (uint32_t i = 0; i < im->prog->nparams; i++) {
+		const struct sl_reg *g = &im->prog->regs[im->prog->params[i].reg];
+		if (g->type == SL_TYPE_STRING || g->arraylen > 0 || seen++ != k)
+			continue;
+		*name = im->prog->params[i].name;
+		*type = g->type;
+		return gpu_imager_get(im, *name, value, n);
+	}
+	return false;
+}
+
 bool gpu_imager_run(struct gpu_imager *im, struct gpu_buffer *src, struct gpu_buffer *dst)
 {
 	uint32_t n = im->w * im->h;

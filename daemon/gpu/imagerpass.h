@@ -44,6 +44,14 @@ bool gpu_imager_set(struct gpu_imager *im, const char *param, const float *value
 bool gpu_imager_get(const struct gpu_imager *im, const char *param, float out[16], uint32_t *n);
 
 /**
+ * Parameter @k of those an edit can set (not strings or arrays): its name,
+ * type (enum sl_basetype), value count and current value. False past the
+ * last.
+ */
+bool gpu_imager_param(const struct gpu_imager *im, uint32_t k, const char **name, int *type,
+		      uint32_t *n, float value[16]);
+
+/**
  * Run the imager over @src (an SSBO of w * h premultiplied linear RGBA
  * floats) into @dst (the same layout), as the CPU's reyes_imager_run does:
  * per pixel Ci = RGB, Oi = A, alpha = A, P = (x + 0.5, y + 0.5, 0); the

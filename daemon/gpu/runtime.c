@@ -2142,6 +2142,34 @@ bool gpu_shot_get(const struct gpu_shot *s, const char *light, const char *param
 	return false;
 }
 
+/* The name of a parameter type as a client shows it. */
+static const char *type_name(int type)
+{
+	static const char *const names[] = {
+		[SL_TYPE_FLOAT] = "float", [SL_TYPE_COLOR] = "color",
+		[SL_TYPE_POINT] = "point", [SL_TYPE_VECTOR] = "vector",
+		[SL_TYPE_NORMAL] = "normal", [SL_TYPE_MATRIX] = "matrix",
+	};
+	return type >= 0 && (size_t)type < sizeof(names) / sizeof(names[0]) && names[type]
+		       ? names[type] : "float";
+}
+
+const char *gpu_shot_imager_shader(const struct gpu_shot *s)
+{
+	return s->imager ? gpu_imager_shader(s->imager) : NULL;
+}
+
+bool gpu_shot_imager_param(const struct gpu_shot *s, uint32_t k, struct gpu_shot_param *out)
+{
+	int type;
+	if (!s->imager ||
+	    !gpu_imager_param(s->imager, k, &out->name, &type, &out->n, out->value))
+		return false;
+	out->type = type_name(type);
+	shot_meta_param_range(out->name, &out->min, &out->max);
+	return true;
+}
+
 bool gpu_shot_light_param(const struct gpu_shot *s, uint32_t light, uint32_t k,
 			  struct gpu_shot_param *out)
 {
@@ -2164,14 +2192,8 @@ bool gpu_shot_light_param(const struct gpu_shot *s, uint32_t light, uint32_t k,
 		uint32_t ne = g->arraylen > 0 ? (uint32_t)g->arraylen : 1;
 		uint32_t tot = ne * (uint32_t)sl_reg_ncomp(g);
 		if (g->arraylen == 0 && tot <= 16 && at + tot <= own.nv && seen++ == k) {
-			static const char *const names[] = {
-				[SL_TYPE_FLOAT] = "float", [SL_TYPE_COLOR] = "color",
-				[SL_TYPE_POINT] = "point", [SL_TYPE_VECTOR] = "vector",
-				[SL_TYPE_NORMAL] = "normal", [SL_TYPE_MATRIX] = "matrix",
-			};
 			out->name = lp->params[i].name;
-			out->type = (size_t)g->type < sizeof(names) / sizeof(names[0]) &&
-					    names[g->type] ? names[g->type] : "float";
+			out->type = type_name(g->type);
 			out->n = tot;
 			memcpy(out->value, own.v + at, tot * sizeof(float));
 			shot_meta_param_range(out->name, &out->min, &out->max);

@@ -138,4 +138,49 @@ for cpu in "" --cpu; do
 	done
 done
 
+# relightd: the opened reply lists the imager (valid against the protocol's
+# reply schema), a set edit of "imager" over the protocol gives what `relight
+# preview` gives with the same edit, bit for bit.
+relightd="$(dirname "$relight")/server/relightd"
+"$relightd" --listen 127.0.0.1:0 --shots "$dir" --log-level warn >"$work/d.out" 2>"$work/d.err" &
+dpid=$!
+trap 'kill -KILL $dpid 2>/dev/null; rm -rf "$work"' EXIT
+for ((i = 0; i < 300; i++)); do
+	line=$(head -n 1 "$work/d.out")
+	[ -n "$line" ] && break
+	sleep 0.1
+done
+url=""
+[[ "$line" =~ ^relightd:\ listening\ on\ https?://([^/]+)/$ ]] && url="ws://${BASH_REMATCH[1]}/ws"
+checks=$((checks + 1))
+what="relightd"
+if [ -z "$url" ]; then
+	fail "relightd did not start: $(head -c 300 "$work/d.err")"
+else
+	run "remote imager edit" "$relight" remote --json "$url" open imager set imager.bgcolor=0.6,0.3,0.1 \
+		wait final snapshot "$dir/remote.exr"
+	expect_status 0
+	head -n 1 "$work/stdout" >"$dir/opened.json"
+	checks=$((checks + 1))
+	python3 -c '
+import json, sys
+o = json.load(open(sys.argv[1]))
+im = o["imager"]
+assert im["name"] == "imager" and im["shader"] == "background", im
+assert [(p["name"], p["value"]) for p in im["params"]] == [("bgcolor", [0.25, 0.5, 0.75])], im
+' "$dir/opened.json" || fail "the opened reply does not list the imager: $(head -c 400 "$dir/opened.json")"
+	run "opened reply against the schema" python3 "$source_dir/protocol/schema/validate.py" \
+		"$source_dir/protocol/schema/reply.schema.json" "$dir/opened.json"
+	expect_status 0
+	run "remote vs preview" bash -c "cd '$dir' && '$relight' preview -q --half --set imager.bgcolor=0.6,0.3,0.1 -o preview.exr imager.shot.exr && '$relight' diff --fail-rel 0 remote.exr preview.exr"
+	expect_status 0
+	run "remote refused imager edit" "$relight" remote "$url" open imager set imager.nope=1
+	expect_status 1
+	expect_stderr "unknown_param: imager 'background' .*has no parameter 'nope'"
+	run "remote: the imager takes set alone" "$relight" remote "$url" open imager mute imager
+	expect_status 1
+fi
+kill -TERM $dpid 2>/dev/null
+wait $dpid 2>/dev/null
+
 finish
