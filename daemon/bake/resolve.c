@@ -192,7 +192,7 @@ static bool run_imager(struct resolver *r, const struct resolve_opts *o, float *
 	const cJSON *dt = cJSON_GetObjectItemCaseSensitive(im, "dtime");
 	struct reyes_imager_frame fr = { cJSON_IsNumber(t) ? (float)t->valuedouble : 0.0f,
 					 cJSON_IsNumber(dt) ? (float)dt->valuedouble : 0.0f };
-	if (ok && !reyes_imager_run(x, rgba, w, h, &fr))
+	if (ok && !reyes_imager_run(x, rgba, w, h, &fr, r->tex))
 		ok = fail(r, "the imager '%s' failed%s", prog->name, NULL);
 	sl_exec_destroy(x);
 	sl_program_destroy(prog);

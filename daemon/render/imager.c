@@ -5,6 +5,8 @@
 #include "imager.h"
 
 #include "exec.h"
+#include "lighthost.h"
+#include "texture.h"
 
 #include <math.h>
 #include <string.h>
@@ -51,15 +53,19 @@ static float finite(float v)
 }
 
 bool reyes_imager_run(struct sl_exec *x, float *rgba, uint32_t w, uint32_t h,
-		      const struct reyes_imager_frame *fr)
+		      const struct reyes_imager_frame *fr, struct reyes_texsys *tex)
 {
 	if (!x || !rgba || !w || !sl_exec_set_grid(x, w, 1))
 		return false;
+	struct sl_lighthost lh = { 0 };
+	lh.host.user = &lh;
+	if (tex)
+		reyes_tex_serve(&lh, tex);
 	uint32_t st = sl_exec_stride(x);
 	for (uint32_t y = 0; y < h; y++) {
 		float *row = rgba + (size_t)y * w * 4;
 		load_row(x, row, w, y, fr);
-		if (!sl_exec_run(x, NULL))
+		if (!sl_exec_run(x, &lh.host))
 			return false;
 		bool vc, va;
 		const float *ci = sl_exec_global(x, SL_GLOBAL_CI, &vc);
@@ -90,7 +96,7 @@ void reyes_imager_set_params(struct sl_exec *x, const struct reyes_shader *sh)
 }
 
 bool reyes_imager_apply(const struct reyes_shader *sh, float *rgba, uint32_t w, uint32_t h,
-			const struct reyes_imager_frame *fr, FILE *diag)
+			const struct reyes_imager_frame *fr, struct reyes_texsys *tex, FILE *diag)
 {
 	struct sl_exec *x = sl_exec_create(sh->prog, w);
 	if (!x) {
@@ -99,7 +105,7 @@ bool reyes_imager_apply(const struct reyes_shader *sh, float *rgba, uint32_t w, 
 		return false;
 	}
 	reyes_imager_set_params(x, sh);
-	bool ok = reyes_imager_run(x, rgba, w, h, fr);
+	bool ok = reyes_imager_run(x, rgba, w, h, fr, tex);
 	if (!ok)
 		fprintf(diag ? diag : stderr, "relight: error: imager '%s' failed\n", sh->name);
 	sl_exec_destroy(x);

@@ -14,6 +14,7 @@
 #include <stdio.h>
 
 struct sl_exec;
+struct reyes_texsys;
 
 /** The frame an imager runs in: the globals that do not vary over its pixels. */
 struct reyes_imager_frame {
@@ -28,11 +29,13 @@ struct reyes_imager_frame {
  * Ci = RGB, Oi = (A, A, A), alpha = A, P = the pixel's centre in raster
  * space (x + 0.5, y + 0.5, 0), ncomps = 3 and @fr's time and dtime; the
  * pixel becomes (Ci, alpha). A value that is not finite is written as 0.
- * One row is one grid, so Du() runs along the row and Dv() is 0. False when
- * the shader stopped on a run-time error (reported on stderr).
+ * One row is one grid, so Du() runs along the row and Dv() is 0.
+ * texture(), environment() and shadow() read files through @tex (NULL:
+ * every file is missing). False when the shader stopped on a run-time error
+ * (reported on stderr).
  */
 bool reyes_imager_run(struct sl_exec *x, float *rgba, uint32_t w, uint32_t h,
-		      const struct reyes_imager_frame *fr);
+		      const struct reyes_imager_frame *fr, struct reyes_texsys *tex);
 
 /**
  * Give @x the parameter values of the instance @sh (the RIB's Imager
@@ -45,6 +48,6 @@ void reyes_imager_set_params(struct sl_exec *x, const struct reyes_shader *sh);
  * reyes_imager_run. False (a message on @diag) when it cannot run.
  */
 bool reyes_imager_apply(const struct reyes_shader *sh, float *rgba, uint32_t w, uint32_t h,
-			const struct reyes_imager_frame *fr, FILE *diag);
+			const struct reyes_imager_frame *fr, struct reyes_texsys *tex, FILE *diag);
 
 #endif

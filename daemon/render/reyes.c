@@ -1926,7 +1926,7 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	/* the imager sees the filtered pixels; exposure comes after it */
 	if (ok && !opts->bake && so->imager && !reyes_scene_is_shadow_pass(scene)) {
 		struct reyes_imager_frame fr = { so->shutter[0], so->shutter[1] - so->shutter[0] };
-		ok = reyes_imager_apply(so->imager, r.rgba, so->xres, so->yres, &fr, r.diag);
+		ok = reyes_imager_apply(so->imager, r.rgba, so->xres, so->yres, &fr, r.tex, r.diag);
 	}
 	/* displays */
 	for (uint32_t i = 0; ok && !opts->bake && i < so->ndisplays; i++)

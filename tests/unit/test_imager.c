@@ -120,6 +120,54 @@ static void test_globals_and_order(void)
 	reyes_image_finish(&im);
 }
 
+/* An imager reads textures as surfaces do (a constant map: no filter question). */
+static void test_texture(void)
+{
+	const char *names[3] = { "R", "G", "B" };
+	struct reyes_image tex;
+	CHECK(reyes_image_init(&tex, 16, 16, 3, names));
+	for (uint32_t i = 0; i < 16 * 16; i++) {
+		tex.data[i * 3] = 0.25f;
+		tex.data[i * 3 + 1] = 0.5f;
+		tex.data[i * 3 + 2] = 0.75f;
+	}
+	CHECK(reyes_image_write_exr(tmp_path("flat.exr"), &tex, false, NULL));
+	reyes_image_finish(&tex);
+	FILE *f = fopen(tmp_path("flatimager.sl"), "w");
+	CHECK(f != NULL);
+	if (!f)
+		return;
+	fputs("imager flatimager(string map = \"\") {\n"
+	      "\tCi = color texture(map, xcomp(P) / 8, ycomp(P) / 6);\n\talpha = 1;\n}\n", f);
+	fclose(f);
+	const char *rib =
+		"Option \"searchpath\" \"shader\" [\".:@\"]\n"
+		"MakeTexture \"flat.exr\" \"flat.tex\" \"clamp\" \"clamp\" \"box\" 1 1\n"
+		"Format 8 6 1\n"
+		"Imager \"flatimager\" \"string map\" \"flat.tex\"\n"
+		"Display \"flat.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+		"WorldBegin\nWorldEnd\n";
+	struct reyes_image im = { 0 };
+	CHECK(render(rib, "flat.exr", &im));
+	if (!im.data)
+		return;
+	double worst = 0;
+	const double want[3] = { 0.25, 0.5, 0.75 };
+	int ch[3] = { channel(&im, "R"), channel(&im, "G"), channel(&im, "B") };
+	for (uint32_t y = 0; y < im.height; y++)
+		for (uint32_t x = 0; x < im.width; x++)
+			for (int c = 0; c < 3; c++) {
+				double d = fabs(px(&im, ch[c], x, y) - want[c]);
+				worst = d > worst ? d : worst;
+			}
+	if (worst > 1e-6)
+		printf("flat: pixel (0, 0) = %g %g %g; %s\n", px(&im, ch[0], 0, 0),
+		       px(&im, ch[1], 0, 0), px(&im, ch[2], 0, 0), diag_text);
+	CHECK(worst <= 1e-6);
+	CHECK(!strstr(diag_text, "not found"));
+	reyes_image_finish(&im);
+}
+
 static bool compiles(const char *src)
 {
 	char *buf = NULL;
@@ -173,6 +221,7 @@ int main(void)
 	RUN(test_language);
 	RUN(test_background);
 	RUN(test_globals_and_order);
+	RUN(test_texture);
 	RUN(test_rib_errors);
 	scene_dir_remove();
 	return test_finish();
