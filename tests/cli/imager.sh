@@ -23,6 +23,9 @@ cp -R "$source_dir/tests/cli/imager" "$dir"
 
 run "bake" bash -c "cd '$dir' && '$relight' bake -q imager.rib"
 expect_status 0
+run "info" "$relight" info "$dir/imager.shot.exr"
+expect_status 0
+expect_stdout "^imager: background \(edited as 'imager'\)"
 run "EGL context" bash -c "cd '$dir' && '$relight' preview -q -o probe.exr imager.shot.exr"
 if [ "$status" -ne 0 ] && grep -q "no GPU context" "$work/stderr"; then
 	echo "SKIP: no EGL/OpenGL 4.3 context here: $(head -c 300 "$work/stderr")"
