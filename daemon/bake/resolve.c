@@ -95,18 +95,18 @@ static bool apply_edits(struct resolver *r, struct light *L, const char *name,
 	return true;
 }
 
-/* Whether edit @e is the imager's: the shot has one and no light of its name. */
+/* Whether edit @e is the imager's: the shot has one and the edit names it. */
 static bool imager_edit(struct resolver *r, const struct resolve_edit *e)
 {
-	return cJSON_GetObjectItemCaseSensitive(r->meta, "imager") && !strcmp(e->light, SHOT_IMAGER);
+	return cJSON_GetObjectItemCaseSensitive(r->meta, "imager") &&
+	       !strcmp(e->light, SHOT_IMAGER);
 }
 
-/* Whether an edit names SHOT_IMAGER while the shot has an imager. */
-static bool edits_imager_name(struct resolver *r, const struct resolve_opts *o)
+/* Whether some edit is the imager's. */
+static bool edits_imager(struct resolver *r, const struct resolve_opts *o)
 {
 	for (size_t i = 0; o && i < o->nedits; i++)
-		if (cJSON_GetObjectItemCaseSensitive(r->meta, "imager") &&
-		    !strcmp(o->edits[i].light, SHOT_IMAGER))
+		if (imager_edit(r, &o->edits[i]))
 			return true;
 	return false;
 }
@@ -132,7 +132,7 @@ static bool load_lights(struct resolver *r, const struct resolve_opts *o)
 		if (!L->x || !set_params(r, L->x, cJSON_GetObjectItemCaseSensitive(l, "params")))
 			return false;
 		const char *name = str(l, "name");
-		if (name && !strcmp(name, SHOT_IMAGER) && edits_imager_name(r, o))
+		if (name && !strcmp(name, SHOT_IMAGER) && edits_imager(r, o))
 			return fail(r, "a light is named '%s' like the shot's imager: its edits "
 				    "are refused%s", SHOT_IMAGER, NULL);
 		if (!apply_edits(r, L, name ? name : "", o))

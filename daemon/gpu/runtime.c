@@ -1740,13 +1740,20 @@ static bool load_imager(struct gpu_shot *s)
 	s->imager = gpu_imager_create(s->ctx, j, s->path, s->width, s->height, s->diag);
 	if (!s->imager)
 		return false;
-	s->bytes += gpu_imager_bytes(s->imager);
 	size_t ib = (size_t)s->width * s->height * 4 * sizeof(float);
+	if (s->bytes + gpu_imager_bytes(s->imager) + NBANDS * ib > s->budget)
+		return fail(s, "the imager pass needs more than the shot's GPU memory budget of "
+			    "%.0f MiB", (double)s->budget / 1048576.0);
+	s->bytes += gpu_imager_bytes(s->imager);
 	for (int L = 0; L < NBANDS; L++)
 		if (!(s->imaged[L] = buffer(s, ib, NULL)))
 			return false;
-	/* llvmpipe compiles at first use: never on an edit */
-	return gpu_imager_run(s->imager, s->rgba[0], s->imaged[0]);
+	/* llvmpipe compiles at first use, and fresh memory is slow to touch: run it
+	 * into every level's image now, never first on an edit */
+	for (int L = 0; L < NBANDS; L++)
+		if (!gpu_imager_run(s->imager, s->rgba[L], s->imaged[L]))
+			return fail(s, "the imager pass failed");
+	return true;
 }
 
 struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,

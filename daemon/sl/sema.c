@@ -1266,9 +1266,8 @@ static void check_stmt(struct sema *s, struct sl_ast *st)
 	s->depth--;
 }
 
-/* RISpec 3.2 §12.1.6: an imager sees the pixel (P, Ci, Oi, alpha) and the
- * frame (ncomps, time, dtime), nothing of any surface; alpha is an imager's
- * alone. */
+/* RISpec 3.2's imager globals: the pixel (P, Ci, Oi, alpha) and the frame
+ * (ncomps, time, dtime), nothing of any surface; alpha is an imager's alone. */
 static bool global_visible(enum sl_shader_kind kind, enum sl_global g)
 {
 	if (kind != SL_SHADER_IMAGER)
@@ -1346,7 +1345,8 @@ struct sl_ast *sl_sema(struct sl_ctx *ctx, struct sl_ast *unit)
 	rl_vec_free(s.marks);
 	if (!shader && !ctx->nerrors) {
 		struct sl_loc loc = { 0, 1, 1 };
-		sl_error(ctx, loc, "no shader definition (surface, light, displacement or imager) found");
+		sl_error(ctx, loc, "no shader definition (surface, light, displacement or imager) "
+			 "found");
 	}
 	return ctx->nerrors ? NULL : shader;
 }

@@ -141,6 +141,18 @@ for cpu in "" --cpu; do
 	done
 done
 
+# A light named like the imager: edits by that name are refused, on both paths.
+mkdir -p "$work/clash"
+sed 's/LightSource "pointlight" 1/LightSource "pointlight" "imager"/' "$dir/imager.rib" \
+	>"$work/clash/clash.rib"
+run "clash: bake" bash -c "cd '$work/clash' && '$relight' bake -q clash.rib"
+expect_status 0
+for cpu in "" --cpu; do
+	run "clash $cpu" bash -c "cd '$work/clash' && '$relight' preview -q $cpu --set imager.intensity=3 -o c.exr clash.shot.exr"
+	expect_status 1
+	expect_stderr "a light is named 'imager' like the shot's imager"
+done
+
 # relightd: the opened reply lists the imager (valid against the protocol's
 # reply schema), a set edit of "imager" over the protocol gives what `relight
 # preview` gives with the same edit, bit for bit.
