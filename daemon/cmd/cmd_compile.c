@@ -319,19 +319,10 @@ static bool emit_light_glsl(const struct sl_program *light, FILE *mem)
  */
 static bool emit_imager_glsl(const struct sl_program *im, FILE *mem)
 {
-	static const enum sl_global in_globals[] = { SL_GLOBAL_CI, SL_GLOBAL_OI, SL_GLOBAL_ALPHA,
-						     SL_GLOBAL_P, SL_GLOBAL_NCOMPS, SL_GLOBAL_TIME,
-						     SL_GLOBAL_DTIME };
-	int32_t inputs[SL_GLOBAL_COUNT], outputs[2];
-	uint32_t nin = 0;
-	for (size_t g = 0; g < sizeof(in_globals) / sizeof(in_globals[0]); g++)
-		if (im->global_reg[in_globals[g]] >= 0)
-			inputs[nin++] = im->global_reg[in_globals[g]];
-	outputs[0] = im->global_reg[SL_GLOBAL_CI];
-	outputs[1] = im->global_reg[SL_GLOBAL_ALPHA];
-	struct sl_slice slice = { im, NULL, inputs, nin, outputs, 2 };
+	enum sl_global globals[SL_GLSL_IMAGER_INPUTS];
+	uint32_t nin;
 	struct sl_glsl_layout lay;
-	char *src = sl_glsl_emit(&slice, NULL, 0, &lay, stderr);
+	char *src = sl_glsl_emit_imager(im, globals, &nin, &lay, stderr);
 	if (src) {
 		fputs(src, mem);
 		sl_glsl_layout_finish(&lay);

@@ -20,21 +20,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The globals an imager may read, in the order of the kernel's inputs. */
-static const enum sl_global imager_inputs[] = {
-	SL_GLOBAL_CI, SL_GLOBAL_OI, SL_GLOBAL_ALPHA, SL_GLOBAL_P,
-	SL_GLOBAL_NCOMPS, SL_GLOBAL_TIME, SL_GLOBAL_DTIME,
-};
-#define NINPUTS (sizeof(imager_inputs) / sizeof(imager_inputs[0]))
-
 struct gpu_imager {
 	struct gpu_ctx *ctx;
 	struct sl_program *prog;
 	struct sl_exec *x;         /* one point: the parameters' values, defaults and edits */
-	int32_t inputs[NINPUTS];
-	enum sl_global input_global[NINPUTS];
+	enum sl_global input_global[SL_GLSL_IMAGER_INPUTS];  /* the kernel's inputs */
 	uint32_t ninputs;
-	int32_t outputs[2];        /* Ci, alpha */
 	struct sl_glsl_layout lay;
 	struct gpu_program *kernel, *pack, *unpack;
 	struct gpu_buffer *in, *out;
@@ -174,17 +165,7 @@ static char *unpack_source(const struct gpu_imager *im)
 static bool compile(struct gpu_imager *im, const char *shot, FILE *diag)
 {
 	const struct sl_program *prog = im->prog;
-	for (size_t k = 0; k < NINPUTS; k++) {
-		int32_t r = prog->global_reg[imager_inputs[k]];
-		if (r >= 0) {
-			im->input_global[im->ninputs] = imager_inputs[k];
-			im->inputs[im->ninputs++] = r;
-		}
-	}
-	im->outputs[0] = prog->global_reg[SL_GLOBAL_CI];
-	im->outputs[1] = prog->global_reg[SL_GLOBAL_ALPHA];
-	struct sl_slice slice = { prog, NULL, im->inputs, im->ninputs, im->outputs, 2 };
-	char *src = sl_glsl_emit(&slice, NULL, 0, &im->lay, diag);
+	char *src = sl_glsl_emit_imager(prog, im->input_global, &im->ninputs, &im->lay, diag);
 	if (!src) {
 		fprintf(diag, "relight: error: %s: the imager '%s' cannot run on the GPU\n", shot,
 			prog->name);

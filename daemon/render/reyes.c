@@ -1752,6 +1752,11 @@ uint64_t reyes_render_warnings(void)
 	return (uint64_t)atomic_load(&render_warnings);
 }
 
+void reyes_render_warned(void)
+{
+	atomic_fetch_add(&render_warnings, 1);
+}
+
 /* Pieces that cross the eye plane where a surface passes through the eye
    cannot be projected: they are left out, and said so. */
 static void eye_plane_warning(struct render *r)

@@ -141,6 +141,32 @@ for cpu in "" --cpu; do
 	done
 done
 
+# An imager the GPU cannot run (it asks the renderer an option): the bake
+# says so at its Imager request (an error under --strict), the CPU preview runs
+# it, the GPU preview refuses the shot naming the shader's line.
+mkdir -p "$work/nogpu"
+cat >"$work/nogpu/asks.sl" <<'SL'
+imager asks()
+{
+	float f[3] = { 0, 0, 0 };
+	option("Format", f);
+	Ci += (1 - alpha) * color(f[0] / 100, 0, 0);
+	alpha = 1;
+}
+SL
+sed 's|^Imager .*|Option "searchpath" "shader" [".:\&"]\nImager "asks"|' "$dir/imager.rib" >"$work/nogpu/nogpu.rib"
+run "no GPU imager: bake" bash -c "cd '$work/nogpu' && '$relight' bake nogpu.rib"
+expect_status 0
+expect_stderr "^nogpu.rib:10: warning: the imager 'asks' cannot run in the GPU preview"
+expect_stderr "asks.sl:4:2: error: option\(\) is not supported on the GPU"
+run "no GPU imager: bake --strict" bash -c "cd '$work/nogpu' && '$relight' bake --strict -o strict.shot.exr nogpu.rib"
+expect_status 1
+run "no GPU imager: --cpu" bash -c "cd '$work/nogpu' && '$relight' preview -q --cpu -o c.exr nogpu.shot.exr"
+expect_status 0
+run "no GPU imager: gpu" bash -c "cd '$work/nogpu' && '$relight' preview -q -o g.exr nogpu.shot.exr"
+expect_status 1
+expect_stderr "the imager 'asks' cannot run on the GPU"
+
 # A light named like the imager: edits by that name are refused, on both paths.
 mkdir -p "$work/clash"
 sed 's/LightSource "pointlight" 1/LightSource "pointlight" "imager"/' "$dir/imager.rib" \
@@ -161,7 +187,7 @@ relightd="$(dirname "$relight")/server/relightd"
 dpid=$!
 trap 'kill -KILL $dpid 2>/dev/null; rm -rf "$work"' EXIT
 for ((i = 0; i < 300; i++)); do
-	line=$(head -n 1 "$work/d.out")
+	line=$(head -n 1 "$work/d.out" 2>/dev/null)
 	[ -n "$line" ] && break
 	sleep 0.1
 done
