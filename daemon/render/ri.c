@@ -1741,26 +1741,6 @@ static void req_surface(struct ri *ri, const struct rib_request *r)
 }
 
 /*
- * Imager "name" params: an option (RISpec 3.2), kept with the frame's
- * options; "null" turns the imager off.
- */
-static void req_imager(struct ri *ri, const struct rib_request *r)
-{
-	const char *name;
-	if (!option_ok(ri, r) || !reyes_ri_str_arg(ri, r, 0, &name))
-		return;
-	if (strcmp(name, "null") == 0) {
-		ri->opt.o.imager = NULL;
-		return;
-	}
-	struct reyes_shader *sh = make_shader(ri, r, SL_SHADER_IMAGER);
-	if (!sh)
-		return;
-	ri->opt.o.imager = sh;
-	ri->opt.o.imager_loc = r->loc;
-}
-
-/*
  * Switches light @index on or off in the current light set: in place when
  * the set is not shared, else in a copy (with room to grow, so that a run
  * of LightSource requests takes linear time).
@@ -1882,6 +1862,30 @@ static void note_light_handle(struct ri *ri, const char *handle)
 	for (uint32_t i = 0; i < ri->opts->nlight_edits; i++)
 		if (strcmp(ri->opts->light_edits[i].light, handle) == 0)
 			ri->edit_seen[i] = true;
+}
+
+/*
+ * Imager "name" params: an option (RISpec 3.2), kept with the frame's
+ * options; "null" turns the imager off.
+ */
+static void req_imager(struct ri *ri, const struct rib_request *r)
+{
+	const char *name;
+	if (!option_ok(ri, r) || !reyes_ri_str_arg(ri, r, 0, &name))
+		return;
+	if (strcmp(name, "null") == 0) {
+		ri->opt.o.imager = NULL;
+		return;
+	}
+	/* relight render --set imager.PARAM=V edits it, as the previews name it
+	   (shotmeta.h SHOT_IMAGER) */
+	note_light_handle(ri, "imager");
+	struct reyes_shader *sh = make_shader(ri, r, SL_SHADER_IMAGER);
+	if (!sh)
+		return;
+	apply_light_edits(ri, r, "imager", sh);
+	ri->opt.o.imager = sh;
+	ri->opt.o.imager_loc = r->loc;
 }
 
 /*
@@ -2435,8 +2439,8 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 		const struct reyes_light_edit *e = &opts->light_edits[i];
 		if (!ri->edit_seen[i])
 			reyes_ri_err(ri, (struct rib_loc){path, 0},
-				     "--set %s.%s: no LightSource with handle %s", e->light, e->param,
-				     e->light);
+				     "--set %s.%s: no LightSource with handle %s%s", e->light, e->param,
+				     e->light, strcmp(e->light, "imager") ? "" : ", and no Imager");
 	}
 
 	int total = ri->nerrors + ri->reader_errors + ri->reader_prim_total;

@@ -110,6 +110,15 @@ imager_case "baked imager" 0.25,0.5,0.75 20
 imager_case "imager edit" 0.6,0.3,0.1 20 imager.bgcolor=0.6,0.3,0.1
 imager_case "imager and light edits" 0.1,0.8,0.2 35 imager.bgcolor=0.1,0.8,0.2 1.intensity=35
 
+# relight render --set imager.PARAM edits the Imager as the previews do: the
+# same image as the RIB edited, bit for bit; an unknown parameter is an error.
+edit_rib "$dir/set.rib" 0.6,0.3,0.1
+run "render --set imager" bash -c "cd '$dir' && '$relight' render -q --set imager.bgcolor=0.6,0.3,0.1 -o set1.exr imager.rib && '$relight' render -q -o set2.exr set.rib && '$relight' diff --fail-rel 0 set1.exr set2.exr"
+expect_status 0
+run "render --set imager.nope" bash -c "cd '$dir' && '$relight' render -q --set imager.nope=1 -o set3.exr imager.rib"
+expect_status 1
+expect_stderr "imager.rib:9: error: --set imager.nope: shader 'background' has no parameter 'nope'"
+
 # An imager edit runs the imager pass alone: after the full frame (one
 # resolve a level) the edit's refinement resolves levels 0-2 once (they were
 # never asked for) and level 3 not again, while the imager runs there twice.
