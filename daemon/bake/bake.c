@@ -13,6 +13,7 @@
 #include "arena.h"
 #include "config.h"
 #include "exec.h"
+#include "glsl.h"
 #include "mathlib.h"
 #include "spec.h"
 #include "ast.h"
@@ -483,6 +484,15 @@ static char *metadata(const struct bake *b, const struct bake_stats *st, const c
 		cJSON_AddItemToObject(j, "params", params_json(&l->shader));
 		cJSON_AddItemToObject(j, "shader_to_world", matrix_json(l->shader.shader_to_world));
 		cJSON_AddItemToArray(lights, j);
+	}
+	if (so->imager) {
+		/* the preview runs it after its resolve, with these values (imager.h) */
+		cJSON *j = cJSON_AddObjectToObject(root, "imager");
+		cJSON_AddStringToObject(j, "shader", so->imager->name);
+		add_source(j, so->imager->prog, shot_dir);
+		cJSON_AddItemToObject(j, "params", params_json(so->imager));
+		cJSON_AddNumberToObject(j, "time", so->shutter[0]);
+		cJSON_AddNumberToObject(j, "dtime", so->shutter[1] - so->shutter[0]);
 	}
 	cJSON *sets = cJSON_AddArrayToObject(root, "lightsets");
 	for (size_t i = 0; i < b->lightsets.len; i++) {
@@ -1217,6 +1227,38 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 	return ok;
 }
 
+/*
+ * The GPU preview runs the imager as a generated kernel: say now, at its
+ * Imager request, when it cannot (the CPU preview still runs it).
+ */
+static void check_imager(const struct bake *b)
+{
+	const struct reyes_options *so = &b->scene->opts;
+	if (!so->imager)
+		return;
+	char *text = NULL;
+	size_t len = 0;
+	FILE *mem = open_memstream(&text, &len);
+	if (!mem)
+		return;
+	enum sl_global globals[SL_GLSL_IMAGER_INPUTS];
+	uint32_t nin;
+	struct sl_glsl_layout lay;
+	char *src = sl_glsl_emit_imager(so->imager->prog, globals, &nin, &lay, mem);
+	fclose(mem);
+	if (src) {
+		sl_glsl_layout_finish(&lay);
+	} else {
+		fprintf(b->diag, "%s:%u: warning: the imager '%s' cannot run in the GPU preview "
+			"(relight preview --cpu runs it):\n%s",
+			so->imager_loc.file ? so->imager_loc.file : "<rib>", so->imager_loc.line,
+			so->imager->name, text ? text : "");
+		reyes_render_warned();
+	}
+	free(src);
+	free(text);
+}
+
 bool bake_scene(const struct reyes_scene *scene, const char *path, const struct bake_opts *opts,
 		struct bake_stats *stats)
 {
@@ -1239,6 +1281,7 @@ bool bake_scene(const struct reyes_scene *scene, const char *path, const struct 
 		.progress_fn = opts->progress_fn ? render_progress : NULL, .progress_user = &b,
 		.shader_cache = opts->shader_cache ? opts->shader_cache : own,
 	};
+	check_imager(&b);
 	report(&b, 0.0, "rendering");
 	struct reyes_stats rs = { 0 };
 	bool ok = reyes_render(scene, &ro, &rs) && !b.failed;

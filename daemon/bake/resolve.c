@@ -7,6 +7,7 @@
 
 #include "arena.h"
 #include "exec.h"
+#include "imager.h"
 #include "lighthost.h"
 #include "mathlib.h"
 #include "shotfile.h"
@@ -94,6 +95,22 @@ static bool apply_edits(struct resolver *r, struct light *L, const char *name,
 	return true;
 }
 
+/* Whether edit @e is the imager's: the shot has one and the edit names it. */
+static bool imager_edit(struct resolver *r, const struct resolve_edit *e)
+{
+	return cJSON_GetObjectItemCaseSensitive(r->meta, "imager") &&
+	       !strcmp(e->light, SHOT_IMAGER);
+}
+
+/* Whether some edit is the imager's. */
+static bool edits_imager(struct resolver *r, const struct resolve_opts *o)
+{
+	for (size_t i = 0; o && i < o->nedits; i++)
+		if (imager_edit(r, &o->edits[i]))
+			return true;
+	return false;
+}
+
 static bool load_lights(struct resolver *r, const struct resolve_opts *o)
 {
 	const cJSON *ls = cJSON_GetObjectItemCaseSensitive(r->meta, "lights");
@@ -115,11 +132,16 @@ static bool load_lights(struct resolver *r, const struct resolve_opts *o)
 		if (!L->x || !set_params(r, L->x, cJSON_GetObjectItemCaseSensitive(l, "params")))
 			return false;
 		const char *name = str(l, "name");
+		if (name && !strcmp(name, SHOT_IMAGER) && edits_imager(r, o))
+			return fail(r, "a light is named '%s' like the shot's imager: its edits "
+				    "are refused%s", SHOT_IMAGER, NULL);
 		if (!apply_edits(r, L, name ? name : "", o))
 			return false;
 	}
-	/* every edit names a light of the shot */
+	/* every edit names a light of the shot, or its imager */
 	for (size_t i = 0; o && i < o->nedits; i++) {
+		if (imager_edit(r, &o->edits[i]))
+			continue;
 		bool found = false;
 		cJSON_ArrayForEach(l, ls) {
 			const char *name = str(l, "name");
@@ -135,6 +157,46 @@ static bool load_lights(struct resolver *r, const struct resolve_opts *o)
 		}
 	}
 	return true;
+}
+
+/*
+ * The shot's imager over the resolved image @rgba, with its baked
+ * parameters and the edits of SHOT_IMAGER, as `relight render` runs it.
+ */
+static bool run_imager(struct resolver *r, const struct resolve_opts *o, float *rgba, uint32_t w,
+		       uint32_t h)
+{
+	const cJSON *im = cJSON_GetObjectItemCaseSensitive(r->meta, "imager");
+	if (!im)
+		return true;
+	struct sl_program *prog = load_shader(r, im);
+	if (!prog)
+		return false;
+	struct sl_exec *x = sl_exec_create(prog, w);
+	bool ok = x && set_params(r, x, cJSON_GetObjectItemCaseSensitive(im, "params"));
+	for (size_t i = 0; ok && o && i < o->nedits; i++) {
+		const struct resolve_edit *e = &o->edits[i];
+		if (!imager_edit(r, e))
+			continue;
+		float v[16];
+		uint32_t n;
+		char err[512], who[300];
+		snprintf(who, sizeof(who), "imager '%s'", prog->name);
+		ok = shot_meta_check_edit(prog, who, e->param, e->values, e->nvalues, v, &n, err,
+					  sizeof(err));
+		if (!ok)
+			fprintf(r->diag, "relight: error: %s\n", err);
+		ok = ok && sl_exec_set_param(x, e->param, v, n);
+	}
+	const cJSON *t = cJSON_GetObjectItemCaseSensitive(im, "time");
+	const cJSON *dt = cJSON_GetObjectItemCaseSensitive(im, "dtime");
+	struct reyes_imager_frame fr = { cJSON_IsNumber(t) ? (float)t->valuedouble : 0.0f,
+					 cJSON_IsNumber(dt) ? (float)dt->valuedouble : 0.0f };
+	if (ok && !reyes_imager_run(x, rgba, w, h, &fr, r->tex))
+		ok = fail(r, "the imager '%s' failed%s", prog->name, NULL);
+	sl_exec_destroy(x);
+	sl_program_destroy(prog);
+	return ok;
 }
 
 /* A channel of a surface table by name: stored, constant or an alias. */
@@ -513,6 +575,11 @@ bool resolve_cpu(const char *path, const struct resolve_opts *opts, struct resol
 		out->samples = r.shaded;
 		if (!lt)
 			out->entries = ifb->offsets[(size_t)W * H];
+		ok = run_imager(&r, opts, out->rgba, W, H);
+		if (!ok) {
+			free(out->rgba);
+			out->rgba = NULL;
+		}
 		out->resolve_seconds = now() - t2;
 	}
 	for (uint32_t i = 0; i < r.nlights; i++) {

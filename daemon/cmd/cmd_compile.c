@@ -42,8 +42,9 @@ static void usage(FILE *out)
 		"                          cache   the caching program of a surface shader\n"
 		"                                  (its static part, as IR)\n"
 		"                          glsl    the GLSL compute shader of a surface's\n"
-		"                                  dynamic part (with no lights), or of a light\n"
-		"                                  shader's translation\n"
+		"                                  dynamic part (with no lights), of a light\n"
+		"                                  shader's translation, or of an imager's\n"
+		"                                  pass over the pixels\n"
 		"  --dynamic P1,P2,...   Surface parameters a user may edit: specialize with\n"
 		"                        them dynamic as well as the lights\n"
 		"  --atmosphere VOLUME   Join the surface shader with the volume shader VOLUME\n"
@@ -321,6 +322,25 @@ static bool emit_light_glsl(const struct sl_program *light, FILE *mem)
 	return src != NULL;
 }
 
+/*
+ * The GLSL of an imager shader: the kernel the GPU runtime runs after its
+ * resolve (gpu/imagerpass.c), a pixel per invocation, reading the globals
+ * the shader uses and writing Ci and alpha.
+ */
+static bool emit_imager_glsl(const struct sl_program *im, FILE *mem)
+{
+	enum sl_global globals[SL_GLSL_IMAGER_INPUTS];
+	uint32_t nin;
+	struct sl_glsl_layout lay;
+	char *src = sl_glsl_emit_imager(im, globals, &nin, &lay, stderr);
+	if (src) {
+		fputs(src, mem);
+		sl_glsl_layout_finish(&lay);
+	}
+	free(src);
+	return src != NULL;
+}
+
 /* The report (with the specialization of a surface shader), the caching program or GLSL. */
 static bool emit_specialized(const struct sl_program *prog, const struct compile_args *args,
 			     FILE *mem)
@@ -334,10 +354,12 @@ static bool emit_specialized(const struct sl_program *prog, const struct compile
 			args->input, sl_program_name(prog));
 		return false;
 	}
+	if (sl_program_kind(prog) == SL_SHADER_IMAGER && args->emit == EMIT_GLSL && !args->ndyn)
+		return emit_imager_glsl(prog, mem);
 	if (sl_program_kind(prog) != SL_SHADER_SURFACE) {
 		if (args->emit == EMIT_CACHE || args->ndyn) {
 			fprintf(stderr, "relight compile: %s is a %s shader; only surface shaders "
-				"are specialized (light shaders run whole on the GPU)\n",
+				"are specialized (light and imager shaders run whole on the GPU)\n",
 				args->input, sl_shader_kind_name(sl_program_kind(prog)));
 			return false;
 		}

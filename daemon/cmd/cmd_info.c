@@ -35,7 +35,8 @@ static void usage(FILE *out)
 		"               [{block, samples, entries}], bytes {PART: N},\n"
 		"               total_bytes, format, specular_model (\"prman\" or\n"
 		"               \"rispec\": the highlight of specular() the shot was\n"
-		"               baked and is previewed with)\n"
+		"               baked and is previewed with), imager (its imager\n"
+		"               shader's name, or null)\n"
 		"  -h, --help   Show this help and exit\n"
 		"\n"
 		"Exit status: 0 on success, 1 when the file cannot be read as a shot file,\n"
@@ -108,6 +109,13 @@ int cmd_info(int argc, char **argv)
 		cJSON_AddItemToArray(lights, cJSON_CreateString(cJSON_IsString(n) ? n->valuestring
 								     : ""));
 	}
+	/* the imager shader, edited as "imager" (shotmeta.h SHOT_IMAGER) */
+	const cJSON *im = cJSON_GetObjectItemCaseSensitive(meta, "imager");
+	const cJSON *imname = cJSON_GetObjectItemCaseSensitive(im, "shader");
+	if (cJSON_IsString(imname))
+		cJSON_AddStringToObject(out, "imager", imname->valuestring);
+	else
+		cJSON_AddNullToObject(out, "imager");
 	cJSON *surfs = cJSON_AddArrayToObject(out, "surfaces");
 	cJSON_ArrayForEach(l, cJSON_GetObjectItemCaseSensitive(meta, "surfaces")) {
 		const cJSON *n = cJSON_GetObjectItemCaseSensitive(l, "shader");
@@ -164,6 +172,8 @@ int cmd_info(int argc, char **argv)
 		printf("\nsurface shaders (%d):", cJSON_GetArraySize(surfs));
 		cJSON_ArrayForEach(l, surfs)
 			printf(" %s", l->valuestring);
+		if (cJSON_IsString(imname))
+			printf("\nimager: %s (edited as '%s')", imname->valuestring, SHOT_IMAGER);
 		printf("\nspecular model: %s",
 		       model_ok ? sl_specular_model_name(model) : "unknown");
 		printf("\nshading samples: %.0f kept of %.0f shaded (%.2fx fewer)\n", ss, sp,

@@ -28,6 +28,7 @@
 #include "arena.h"
 #include "clock.h"
 #include "graph.h"
+#include "imagerpass.h"
 #include "lighthost.h"
 #include "log.h"
 #include "mathlib.h"
@@ -193,8 +194,13 @@ struct gpu_shot {
 	bool base_valid[NBANDS];
 	uint32_t link_version;
 
+	/* the imager pass (imagerpass.h): level L's image is imaged[L] after it */
+	struct gpu_imager *imager;
+	struct gpu_buffer *imaged[NBANDS];
+
 	struct graph *graph;
 	struct graph_node *shade[NBANDS], *resolve[NBANDS];
+	struct graph_node *imager_src, *image[NBANDS];  /* with an imager */
 	struct gpu_shot_stats *stats;  /* of the call running, or NULL */
 };
 
@@ -833,6 +839,34 @@ static bool run_resolve(struct graph_node *n, void *user, bool *changed)
 	if (s->stats)
 		s->stats->entries = s->level_entries[level];
 	return true;
+}
+
+/* The imager node of level @L: the imager over the resolved image. */
+static bool run_image(struct graph_node *n, void *user, bool *changed)
+{
+	struct gpu_shot *s = user;
+	int level = -1;
+	for (int b = 0; b < NBANDS; b++)
+		if (s->image[b] == n)
+			level = b;
+	*changed = true;
+	if (level < 0 || !gpu_imager_run(s->imager, s->rgba[level], s->imaged[level]))
+		return fail(s, "the imager pass of level %d failed", level);
+	count_dispatch(s, 0);
+	count_dispatch(s, 0);
+	count_dispatch(s, 0);
+	return true;
+}
+
+/* The node whose image level @level shows, and the buffer it is in. */
+static struct graph_node *level_node(const struct gpu_shot *s, int level)
+{
+	return s->imager ? s->image[level] : s->resolve[level];
+}
+
+static struct gpu_buffer *level_image(const struct gpu_shot *s, int level)
+{
+	return s->imager ? s->imaged[level] : s->rgba[level];
 }
 
 static bool light_from_to(struct gpu_shot *s, const struct light *L, float from[3],
@@ -1684,6 +1718,41 @@ static bool build_graph(struct gpu_shot *s)
 		for (int b = 0; b <= L; b++)
 			graph_connect(s->graph, s->shade[b], s->resolve[L]);
 	}
+	if (s->imager) {
+		s->imager_src = graph_add(s->graph, "imager", GRAPH_PARAMS, NULL, NULL);
+		for (int L = 0; L < NBANDS; L++) {
+			char name[32];
+			snprintf(name, sizeof(name), "imager:level%d", L);
+			s->image[L] = graph_add(s->graph, name, GRAPH_IMAGE, run_image, s);
+			graph_connect(s->graph, s->resolve[L], s->image[L]);
+			graph_connect(s->graph, s->imager_src, s->image[L]);
+		}
+	}
+	return true;
+}
+
+/* The shot's imager, when it has one: its pass and an image per level after it. */
+static bool load_imager(struct gpu_shot *s)
+{
+	const cJSON *j = cJSON_GetObjectItemCaseSensitive(s->meta, "imager");
+	if (!j)
+		return true;
+	s->imager = gpu_imager_create(s->ctx, j, s->path, s->width, s->height, s->diag);
+	if (!s->imager)
+		return false;
+	size_t ib = (size_t)s->width * s->height * 4 * sizeof(float);
+	if (s->bytes + gpu_imager_bytes(s->imager) + NBANDS * ib > s->budget)
+		return fail(s, "the imager pass needs more than the shot's GPU memory budget of "
+			    "%.0f MiB", (double)s->budget / 1048576.0);
+	s->bytes += gpu_imager_bytes(s->imager);
+	for (int L = 0; L < NBANDS; L++)
+		if (!(s->imaged[L] = buffer(s, ib, NULL)))
+			return false;
+	/* llvmpipe compiles at first use, and fresh memory is slow to touch: run it
+	 * into every level's image now, never first on an edit */
+	for (int L = 0; L < NBANDS; L++)
+		if (!gpu_imager_run(s->imager, s->rgba[L], s->imaged[L]))
+			return fail(s, "the imager pass failed");
 	return true;
 }
 
@@ -1813,6 +1882,7 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	free(remap);
 	for (int b = 0; b < NBANDS; b++)
 		s->cached[b] = rl_xcalloc(s->nlights + 1, sizeof(struct lstate));
+	ok = ok && load_imager(s);
 	ok = ok && build_graph(s);
 	ok = ok && warm_up(s, -1);
 	for (uint32_t i = 0; ok && i < s->nsurfaces; i++)
@@ -1889,7 +1959,9 @@ void gpu_shot_close(struct gpu_shot *s)
 			lstate_free(&s->cached[b][i]);
 		free(s->cached[b]);
 		gpu_buffer_destroy(s->rgba[b]);
+		gpu_buffer_destroy(s->imaged[b]);
 	}
+	gpu_imager_destroy(s->imager);
 	for (uint32_t k = 0; k < s->nlshaders; k++)
 		sl_program_destroy(s->lshaders[k].prog);
 	free(s->shader_path);
@@ -2008,6 +2080,17 @@ static void editing(struct gpu_shot *s, struct light *L)
 bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
 		  const float *values, uint32_t n, char *err, size_t errlen)
 {
+	if (s->imager && light && !strcmp(light, SHOT_IMAGER)) {
+		if (gpu_shot_find_light(s, light) >= 0) {
+			errorf(err, errlen, "a light is named '%s' like the shot's imager: its "
+			       "edits are refused", SHOT_IMAGER);
+			return false;
+		}
+		if (!gpu_imager_set(s->imager, param, values, n, err, errlen))
+			return false;
+		graph_touch(s->imager_src);
+		return true;
+	}
 	struct light *L = find(s, light, err, errlen);
 	if (!L)
 		return false;
@@ -2040,6 +2123,8 @@ bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
 bool gpu_shot_get(const struct gpu_shot *s, const char *light, const char *param, float out[16],
 		  uint32_t *n)
 {
+	if (s->imager && light && !strcmp(light, SHOT_IMAGER))
+		return gpu_imager_get(s->imager, param, out, n);
 	int i = gpu_shot_find_light(s, light);
 	if (i < 0 || !param)
 		return false;
@@ -2064,6 +2149,34 @@ bool gpu_shot_get(const struct gpu_shot *s, const char *light, const char *param
 	return false;
 }
 
+/* The name of a parameter type as a client shows it. */
+static const char *type_name(int type)
+{
+	static const char *const names[] = {
+		[SL_TYPE_FLOAT] = "float", [SL_TYPE_COLOR] = "color",
+		[SL_TYPE_POINT] = "point", [SL_TYPE_VECTOR] = "vector",
+		[SL_TYPE_NORMAL] = "normal", [SL_TYPE_MATRIX] = "matrix",
+	};
+	return type >= 0 && (size_t)type < sizeof(names) / sizeof(names[0]) && names[type]
+		       ? names[type] : "float";
+}
+
+const char *gpu_shot_imager_shader(const struct gpu_shot *s)
+{
+	return s->imager ? gpu_imager_shader(s->imager) : NULL;
+}
+
+bool gpu_shot_imager_param(const struct gpu_shot *s, uint32_t k, struct gpu_shot_param *out)
+{
+	int type;
+	if (!s->imager ||
+	    !gpu_imager_param(s->imager, k, &out->name, &type, &out->n, out->value))
+		return false;
+	out->type = type_name(type);
+	shot_meta_param_range(out->name, &out->min, &out->max);
+	return true;
+}
+
 bool gpu_shot_light_param(const struct gpu_shot *s, uint32_t light, uint32_t k,
 			  struct gpu_shot_param *out)
 {
@@ -2086,14 +2199,8 @@ bool gpu_shot_light_param(const struct gpu_shot *s, uint32_t light, uint32_t k,
 		uint32_t ne = g->arraylen > 0 ? (uint32_t)g->arraylen : 1;
 		uint32_t tot = ne * (uint32_t)sl_reg_ncomp(g);
 		if (g->arraylen == 0 && tot <= 16 && at + tot <= own.nv && seen++ == k) {
-			static const char *const names[] = {
-				[SL_TYPE_FLOAT] = "float", [SL_TYPE_COLOR] = "color",
-				[SL_TYPE_POINT] = "point", [SL_TYPE_VECTOR] = "vector",
-				[SL_TYPE_NORMAL] = "normal", [SL_TYPE_MATRIX] = "matrix",
-			};
 			out->name = lp->params[i].name;
-			out->type = (size_t)g->type < sizeof(names) / sizeof(names[0]) &&
-					    names[g->type] ? names[g->type] : "float";
+			out->type = type_name(g->type);
 			out->n = tot;
 			memcpy(out->value, own.v + at, tot * sizeof(float));
 			shot_meta_param_range(out->name, &out->min, &out->max);
@@ -2223,7 +2330,7 @@ bool gpu_shot_render(struct gpu_shot *s, int level, struct gpu_shot_stats *st)
 		return fail(s, "no refinement level %d (0 to %d)", level, NBANDS - 1);
 	double t0 = rl_now_ms();
 	s->stats = st;
-	bool ok = graph_pull(s->graph, s->resolve[level]) && gpu_finish(s->ctx);
+	bool ok = graph_pull(s->graph, level_node(s, level)) && gpu_finish(s->ctx);
 	s->stats = NULL;
 	st->entries = s->level_entries[level];
 	st->ms = rl_now_ms() - t0;
@@ -2232,28 +2339,28 @@ bool gpu_shot_render(struct gpu_shot *s, int level, struct gpu_shot_stats *st)
 
 bool gpu_shot_read_rgba(struct gpu_shot *s, int level, float *rgba)
 {
-	if (level < 0 || level >= NBANDS || graph_node_runs(s->resolve[level]) == 0)
+	if (level < 0 || level >= NBANDS || graph_node_runs(level_node(s, level)) == 0)
 		return false;
-	return gpu_buffer_read(s->rgba[level], 0, (size_t)s->width * s->height * 4 * sizeof(float),
+	return gpu_buffer_read(level_image(s, level), 0, (size_t)s->width * s->height * 4 * sizeof(float),
 			       rgba);
 }
 
 bool gpu_shot_read_half(struct gpu_shot *s, int level, uint16_t *rgba)
 {
-	if (level < 0 || level >= NBANDS || graph_node_runs(s->resolve[level]) == 0)
+	if (level < 0 || level >= NBANDS || graph_node_runs(level_node(s, level)) == 0)
 		return false;
 	uint32_t n = s->width * s->height;
-	struct gpu_binding hb[2] = { { 0, true, s->rgba[level] }, { 1, true, s->px16 } };
+	struct gpu_binding hb[2] = { { 0, true, level_image(s, level) }, { 1, true, s->px16 } };
 	return gpu_dispatch(s->ctx, s->half, hb, 2, n) &&
 	       gpu_buffer_read(s->px16, 0, (size_t)n * 8, rgba);
 }
 
 bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px)
 {
-	if (level < 0 || level >= NBANDS || graph_node_runs(s->resolve[level]) == 0)
+	if (level < 0 || level >= NBANDS || graph_node_runs(level_node(s, level)) == 0)
 		return false;
 	uint32_t n = s->width * s->height;
-	return gpu_encode_srgb8(s->ctx, s->rgba[level], n, s->px8) &&
+	return gpu_encode_srgb8(s->ctx, level_image(s, level), n, s->px8) &&
 	       gpu_buffer_read(s->px8, 0, (size_t)n * 4, px);
 }
 

@@ -214,6 +214,20 @@ int gpu_shot_add_light(struct gpu_shot *s, const char *name, const char *shader,
 /** Remove a light (its index stays taken; gpu_shot_light_name gives NULL for it). */
 bool gpu_shot_remove_light(struct gpu_shot *s, const char *light, char *err, size_t errlen);
 
+/* ---- the imager ---- */
+
+/*
+ * A shot baked with an RIB Imager runs it on every level's image after the
+ * resolve (imagerpass.h). gpu_shot_set and gpu_shot_get take its parameters
+ * with SHOT_IMAGER ("imager", shotmeta.h) in place of a light's name.
+ */
+
+/** The shot's imager shader's name, or NULL when it has none. */
+const char *gpu_shot_imager_shader(const struct gpu_shot *s);
+
+/** Parameter @k of the imager among those an edit can set; false past the last. */
+bool gpu_shot_imager_param(const struct gpu_shot *s, uint32_t k, struct gpu_shot_param *out);
+
 /* ---- rendering ---- */
 
 struct gpu_shot_stats {

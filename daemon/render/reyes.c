@@ -18,6 +18,7 @@
  * geometry.
  */
 #include "reyes.h"
+#include "imager.h"
 #include "geom.h"
 #include "hider.h"
 #include "texture.h"
@@ -1751,6 +1752,11 @@ uint64_t reyes_render_warnings(void)
 	return (uint64_t)atomic_load(&render_warnings);
 }
 
+void reyes_render_warned(void)
+{
+	atomic_fetch_add(&render_warnings, 1);
+}
+
 /* Pieces that cross the eye plane where a surface passes through the eye
    cannot be projected: they are left out, and said so. */
 static void eye_plane_warning(struct render *r)
@@ -1921,6 +1927,11 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 		grids += t->grids;
 		points += t->points;
 		samples += t->samples;
+	}
+	/* the imager sees the filtered pixels; exposure comes after it */
+	if (ok && !opts->bake && so->imager && !reyes_scene_is_shadow_pass(scene)) {
+		struct reyes_imager_frame fr = { so->shutter[0], so->shutter[1] - so->shutter[0] };
+		ok = reyes_imager_apply(so->imager, r.rgba, so->xres, so->yres, &fr, r.tex, r.diag);
 	}
 	/* displays */
 	for (uint32_t i = 0; ok && !opts->bake && i < so->ndisplays; i++)

@@ -85,6 +85,9 @@ struct reyes_stats {
  */
 uint64_t reyes_render_warnings(void);
 
+/** Count one more of those warnings (a bake's, printed by the caller). */
+void reyes_render_warned(void);
+
 /**
  * Render @scene's frame and write its displays. False on failure (reported
  * on opts->diag). @stats may be NULL.

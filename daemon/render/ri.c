@@ -1703,7 +1703,7 @@ static bool shader_params(struct ri *ri, const struct rib_request *r, const char
 	return ok;
 }
 
-/* A shader instance for a Surface, Displacement or LightSource request. */
+/* A shader instance for a Surface, Displacement, LightSource or Imager request. */
 static struct reyes_shader *make_shader(struct ri *ri, const struct rib_request *r,
 					enum sl_shader_kind want)
 {
@@ -1975,6 +1975,30 @@ static void note_light_handle(struct ri *ri, const char *handle)
 	for (uint32_t i = 0; i < ri->opts->nlight_edits; i++)
 		if (strcmp(ri->opts->light_edits[i].light, handle) == 0)
 			ri->edit_seen[i] = true;
+}
+
+/*
+ * Imager "name" params: an option (RISpec 3.2), kept with the frame's
+ * options; "null" turns the imager off.
+ */
+static void req_imager(struct ri *ri, const struct rib_request *r)
+{
+	const char *name;
+	if (!option_ok(ri, r) || !reyes_ri_str_arg(ri, r, 0, &name))
+		return;
+	if (strcmp(name, "null") == 0) {
+		ri->opt.o.imager = NULL;
+		return;
+	}
+	/* relight render --set imager.PARAM=V edits it, as the previews name it
+	   (shotmeta.h SHOT_IMAGER) */
+	note_light_handle(ri, "imager");
+	struct reyes_shader *sh = make_shader(ri, r, SL_SHADER_IMAGER);
+	if (!sh)
+		return;
+	apply_light_edits(ri, r, "imager", sh);
+	ri->opt.o.imager = sh;
+	ri->opt.o.imager_loc = r->loc;
 }
 
 /*
@@ -2333,6 +2357,7 @@ static const struct handler handlers[] = {
 	{"Color", req_color, 0},
 	{"Opacity", req_color, 0},
 	{"Surface", req_surface, 0},
+	{"Imager", req_imager, 0},
 	{"Displacement", req_surface, 0},
 	{"Atmosphere", req_volume, 0},
 	{"Interior", req_volume, 0},
@@ -2530,8 +2555,8 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 		const struct reyes_light_edit *e = &opts->light_edits[i];
 		if (!ri->edit_seen[i])
 			reyes_ri_err(ri, (struct rib_loc){path, 0},
-				     "--set %s.%s: no LightSource with handle %s", e->light, e->param,
-				     e->light);
+				     "--set %s.%s: no LightSource with handle %s%s", e->light, e->param,
+				     e->light, strcmp(e->light, "imager") ? "" : ", and no Imager");
 	}
 
 	int total = ri->nerrors + ri->reader_errors + ri->reader_prim_total;

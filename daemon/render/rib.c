@@ -96,6 +96,7 @@ static const struct reqdef reqdefs[] = {
 	{"Color", "r:n g:n b:n", BRACKET_OK},
 	{"Opacity", "r:n g:n b:n", BRACKET_OK},
 	{"Surface", "name:s", TAKES_PARAMS},
+	{"Imager", "name:s", TAKES_PARAMS},
 	{"Displacement", "name:s", TAKES_PARAMS},
 	{"Atmosphere", "name:s", TAKES_PARAMS},
 	{"Interior", "name:s", TAKES_PARAMS},
@@ -166,7 +167,7 @@ static const char *const unsupported[] = {
 	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Blobby",
 	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Curves", "Deformation",
 	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Geometry", "IfBegin",
-	"IfEnd", "Imager", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
+	"IfEnd", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
 	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
 	"Shader", "SolidBegin", "SolidEnd", "SubdivisionMesh", "System", "TrimCurve",
 };

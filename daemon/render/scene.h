@@ -55,6 +55,9 @@ struct reyes_options {
 	enum reyes_filter filter;       /* PixelFilter, default gaussian 2 2 */
 	float filter_width[2];
 	float gain, gamma;              /* Exposure, default 1 1 */
+	/* Imager: run on the final pixels before Exposure (NULL: none) */
+	const struct reyes_shader *imager;
+	struct rib_loc imager_loc;
 	struct reyes_display *displays; /* in order; default one "file" rgba display */
 	uint32_t ndisplays;
 	bool numbered;                  /* the world is in a FrameBegin: frame_number is its number */

@@ -19,6 +19,7 @@
 #include "log.h"
 #include "runtime.h"
 #include "shotfile.h"
+#include "shotmeta.h"
 #include "texture.h"
 
 #include <cjson/cJSON.h>
@@ -252,10 +253,18 @@ static bool shot_load(struct srv *s, struct srv_shot *sh, char *err, size_t errl
 
 /* ---- applying requests ---- */
 
+/* Whether @light names the shot's imager (shotmeta.h SHOT_IMAGER). */
+static bool is_imager(const struct gpu_shot *g, const char *light)
+{
+	return light && gpu_shot_imager_shader(g) && !strcmp(light, SHOT_IMAGER);
+}
+
 /* Parameter @name of light @light as an edit would give it (its shader space). */
 static bool param_value(struct gpu_shot *g, const char *light, const char *name, float v[16],
 			uint32_t *n)
 {
+	if (is_imager(g, light))
+		return gpu_shot_get(g, light, name, v, n);
 	int i = gpu_shot_find_light(g, light);
 	struct gpu_shot_param p;
 	for (uint32_t k = 0; i >= 0 && gpu_shot_light_param(g, (uint32_t)i, k, &p); k++)
@@ -303,7 +312,9 @@ static bool apply_job(struct srv *s, struct srv_shot *sh, const struct srv_job *
 	struct gpu_shot *g = sh->gpu;
 	bool ok = false;
 	*code = PROTO_E_RANGE;
-	if (j->light && j->op != PROTO_ADD_LIGHT && gpu_shot_find_light(g, j->light) < 0) {
+	/* the imager takes "set" edits alone */
+	if (j->light && j->op != PROTO_ADD_LIGHT && gpu_shot_find_light(g, j->light) < 0 &&
+	    !(j->op == PROTO_SET && is_imager(g, j->light))) {
 		snprintf(err, errlen, "shot '%s' has no light '%s'", sh->name, j->light);
 		*code = PROTO_E_UNKNOWN_LIGHT;
 		return false;
@@ -374,6 +385,24 @@ static bool apply_job(struct srv *s, struct srv_shot *sh, const struct srv_job *
 
 /* ---- replies ---- */
 
+/* A parameter as a client shows it: name, type, value, range. */
+static cJSON *param_json(const struct gpu_shot_param *p)
+{
+	cJSON *pj = cJSON_CreateObject();
+	cJSON_AddStringToObject(pj, "name", p->name);
+	cJSON_AddStringToObject(pj, "type", p->type);
+	if (p->n == 1) {
+		cJSON_AddNumberToObject(pj, "value", p->value[0]);
+	} else {
+		cJSON *v = cJSON_AddArrayToObject(pj, "value");
+		for (uint32_t c = 0; c < p->n; c++)
+			cJSON_AddItemToArray(v, cJSON_CreateNumber(p->value[c]));
+	}
+	cJSON_AddNumberToObject(pj, "min", p->min);
+	cJSON_AddNumberToObject(pj, "max", p->max);
+	return pj;
+}
+
 static cJSON *opened_json(const struct srv_shot *sh, const struct srv_job *j)
 {
 	struct gpu_shot *g = sh->gpu;
@@ -396,22 +425,18 @@ static cJSON *opened_json(const struct srv_shot *sh, const struct srv_job *j)
 		cJSON_AddStringToObject(l, "shader", gpu_shot_light_shader(g, i));
 		cJSON *ps = cJSON_AddArrayToObject(l, "params");
 		struct gpu_shot_param p;
-		for (uint32_t k = 0; gpu_shot_light_param(g, i, k, &p); k++) {
-			cJSON *pj = cJSON_CreateObject();
-			cJSON_AddStringToObject(pj, "name", p.name);
-			cJSON_AddStringToObject(pj, "type", p.type);
-			if (p.n == 1)
-				cJSON_AddNumberToObject(pj, "value", p.value[0]);
-			else {
-				cJSON *v = cJSON_AddArrayToObject(pj, "value");
-				for (uint32_t c = 0; c < p.n; c++)
-					cJSON_AddItemToArray(v, cJSON_CreateNumber(p.value[c]));
-			}
-			cJSON_AddNumberToObject(pj, "min", p.min);
-			cJSON_AddNumberToObject(pj, "max", p.max);
-			cJSON_AddItemToArray(ps, pj);
-		}
+		for (uint32_t k = 0; gpu_shot_light_param(g, i, k, &p); k++)
+			cJSON_AddItemToArray(ps, param_json(&p));
 		cJSON_AddItemToArray(lights, l);
+	}
+	if (gpu_shot_imager_shader(g)) {
+		cJSON *im = cJSON_AddObjectToObject(o, "imager");
+		cJSON_AddStringToObject(im, "name", SHOT_IMAGER);
+		cJSON_AddStringToObject(im, "shader", gpu_shot_imager_shader(g));
+		cJSON *ps = cJSON_AddArrayToObject(im, "params");
+		struct gpu_shot_param p;
+		for (uint32_t k = 0; gpu_shot_imager_param(g, k, &p); k++)
+			cJSON_AddItemToArray(ps, param_json(&p));
 	}
 	return o;
 }

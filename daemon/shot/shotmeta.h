@@ -96,4 +96,11 @@ bool shot_meta_check_edit(const struct sl_program *light, const char *who, const
 			  const float *values, uint32_t n, float out[16], uint32_t *nout,
 			  char *err, size_t errlen);
 
+/**
+ * What edits call the shot's imager (metadata "imager"), in place of a
+ * light's name: `--set imager.PARAM=V`, {"light": "imager", ...}. A shot
+ * with an imager and a light of that name refuses edits of either by it.
+ */
+#define SHOT_IMAGER "imager"
+
 #endif

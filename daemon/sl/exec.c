@@ -87,6 +87,7 @@ const uint8_t sl_exec_global_ncomp[SL_GLOBAL_COUNT] = {
 	[SL_GLOBAL_DPDV] = 3, [SL_GLOBAL_L] = 3, [SL_GLOBAL_CL] = 3, [SL_GLOBAL_OL] = 3,
 	[SL_GLOBAL_PS] = 3, [SL_GLOBAL_NCOMPS] = 1, [SL_GLOBAL_TIME] = 1,
 	[SL_GLOBAL_DTIME] = 1, [SL_GLOBAL_DPDTIME] = 3,
+	[SL_GLOBAL_ALPHA] = 1,
 };
 
 /* ------------------------------------------------------------------------ */

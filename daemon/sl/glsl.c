@@ -2221,7 +2221,9 @@ char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lig
 
 	if (!check_slice(g, s, lights, nlights))
 		goto out;
-	if (s->prog->kind != SL_SHADER_SURFACE)
+	/* An imager's pixels are samples like a surface's: its inputs and
+	 * outputs are the slice's, and it calls no light. */
+	if (s->prog->kind != SL_SHADER_SURFACE && s->prog->kind != SL_SHADER_IMAGER)
 		sl_glsl_warning(g, NULL, "emitting a %s shader as a surface",
 				sl_shader_kind_name(s->prog->kind));
 	if (!prepare(g, &g->sp, s->prog, -1))
@@ -2339,4 +2341,29 @@ void sl_glsl_layout_finish(struct sl_glsl_layout *layout)
 	free(layout->in_step_v);
 	free(layout->shadows);
 	memset(layout, 0, sizeof(*layout));
+}
+
+char *sl_glsl_emit_imager(const struct sl_program *im, enum sl_global *globals, uint32_t *nin,
+			  struct sl_glsl_layout *layout, FILE *diag)
+{
+	static const enum sl_global order[SL_GLSL_IMAGER_INPUTS] = {
+		SL_GLOBAL_CI, SL_GLOBAL_OI, SL_GLOBAL_ALPHA, SL_GLOBAL_P,
+		SL_GLOBAL_NCOMPS, SL_GLOBAL_TIME, SL_GLOBAL_DTIME,
+	};
+	int32_t inputs[SL_GLSL_IMAGER_INPUTS], outputs[2];
+	*nin = 0;
+	if (!im || im->kind != SL_SHADER_IMAGER || im->global_reg[SL_GLOBAL_CI] < 0 ||
+	    im->global_reg[SL_GLOBAL_ALPHA] < 0) {
+		fprintf(diag ? diag : stderr, "error: not an imager shader\n");
+		return NULL;
+	}
+	for (int k = 0; k < SL_GLSL_IMAGER_INPUTS; k++)
+		if (im->global_reg[order[k]] >= 0) {
+			globals[*nin] = order[k];
+			inputs[(*nin)++] = im->global_reg[order[k]];
+		}
+	outputs[0] = im->global_reg[SL_GLOBAL_CI];
+	outputs[1] = im->global_reg[SL_GLOBAL_ALPHA];
+	struct sl_slice slice = { im, NULL, inputs, *nin, outputs, 2 };
+	return sl_glsl_emit(&slice, NULL, 0, layout, diag);
 }

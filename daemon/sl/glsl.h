@@ -144,6 +144,20 @@ char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lig
 
 void sl_glsl_layout_finish(struct sl_glsl_layout *layout);
 
+/** Globals an imager kernel may read, at most. */
+#define SL_GLSL_IMAGER_INPUTS 7
+
+/**
+ * The kernel of imager shader @im (the GPU runtime's imager pass): the
+ * whole program, one pixel per invocation, no lights, its parameters
+ * uniforms "p_NAME". Its inputs are those of Ci, Oi, alpha, P, ncomps, time
+ * and dtime the program has, in that order: @globals receives them
+ * (SL_GLSL_IMAGER_INPUTS at most) and *@nin their count; its outputs are Ci
+ * and alpha. Otherwise as sl_glsl_emit.
+ */
+char *sl_glsl_emit_imager(const struct sl_program *im, enum sl_global *globals, uint32_t *nin,
+			  struct sl_glsl_layout *layout, FILE *diag);
+
 /**
  * The name of the uniform holding parameter @name of light @light (0, 1, ...
  * in the order given to sl_glsl_emit) or, with @light < 0, of the surface:

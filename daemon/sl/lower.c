@@ -59,7 +59,7 @@ static const char *const global_names[SL_GLOBAL_COUNT] = {
 	[SL_GLOBAL_DPDU] = "dPdu", [SL_GLOBAL_DPDV] = "dPdv", [SL_GLOBAL_L] = "L",
 	[SL_GLOBAL_CL] = "Cl", [SL_GLOBAL_OL] = "Ol", [SL_GLOBAL_PS] = "Ps",
 	[SL_GLOBAL_NCOMPS] = "ncomps", [SL_GLOBAL_TIME] = "time", [SL_GLOBAL_DTIME] = "dtime",
-	[SL_GLOBAL_DPDTIME] = "dPdtime",
+	[SL_GLOBAL_DPDTIME] = "dPdtime", [SL_GLOBAL_ALPHA] = "alpha",
 };
 
 const char *sl_global_name(enum sl_global g)
@@ -77,6 +77,7 @@ struct sl_type sl_global_type(enum sl_global g)
 	case SL_GLOBAL_CS: case SL_GLOBAL_OS: case SL_GLOBAL_CI: case SL_GLOBAL_OI:
 	case SL_GLOBAL_CL: case SL_GLOBAL_OL: t.base = SL_TYPE_COLOR; break;
 	case SL_GLOBAL_S: case SL_GLOBAL_T: case SL_GLOBAL_U: case SL_GLOBAL_V:
+	case SL_GLOBAL_ALPHA:
 		t.base = SL_TYPE_FLOAT; break;
 	case SL_GLOBAL_DU: case SL_GLOBAL_DV: case SL_GLOBAL_NCOMPS: case SL_GLOBAL_TIME:
 	case SL_GLOBAL_DTIME:
@@ -1086,6 +1087,11 @@ struct sl_program *sl_lower(struct sl_ctx *ctx, struct sl_ast *shader)
 	case SL_SHADER_VOLUME:
 		global(&l, SL_GLOBAL_CI);
 		global(&l, SL_GLOBAL_OI);
+		break;
+	case SL_SHADER_IMAGER:
+		global(&l, SL_GLOBAL_CI);
+		global(&l, SL_GLOBAL_OI);
+		global(&l, SL_GLOBAL_ALPHA);
 		break;
 	default:
 		break;

@@ -1293,9 +1293,22 @@ static void check_stmt(struct sema *s, struct sl_ast *st)
 	s->depth--;
 }
 
+/* RISpec 3.2's imager globals: the pixel (P, Ci, Oi, alpha) and the frame
+ * (ncomps, time, dtime), nothing of any surface; alpha is an imager's alone. */
+static bool global_visible(enum sl_shader_kind kind, enum sl_global g)
+{
+	if (kind != SL_SHADER_IMAGER)
+		return g != SL_GLOBAL_ALPHA;
+	return g == SL_GLOBAL_P || g == SL_GLOBAL_CI || g == SL_GLOBAL_OI ||
+	       g == SL_GLOBAL_ALPHA || g == SL_GLOBAL_NCOMPS || g == SL_GLOBAL_TIME ||
+	       g == SL_GLOBAL_DTIME;
+}
+
 static void declare_globals(struct sema *s)
 {
 	for (int g = 0; g < SL_GLOBAL_COUNT; g++) {
+		if (!global_visible(s->kind, (enum sl_global)g))
+			continue;
 		struct sl_type t = sl_global_type((enum sl_global)g);
 		struct sl_sym *sym =
 			new_sym(s, SL_SYM_GLOBAL, sl_intern_cstr(s->ctx, sl_global_name(g)), t);
@@ -1307,9 +1320,6 @@ static void declare_globals(struct sema *s)
 static void check_shader(struct sema *s, struct sl_ast *sh)
 {
 	s->kind = (enum sl_shader_kind)sh->op;
-	if (s->kind == SL_SHADER_IMAGER)
-		sl_error(s->ctx, sh->loc, "%s shaders are not supported by relight",
-			 sl_shader_kind_name(s->kind));
 	push_scope(s);
 	for (uint32_t i = 0; i < sh->nlist; i++) {
 		struct sl_ast *p = sh->list[i];
@@ -1328,10 +1338,8 @@ struct sl_ast *sl_sema(struct sl_ctx *ctx, struct sl_ast *unit)
 {
 	struct sema s = { .ctx = ctx };
 	struct sl_ast *shader = NULL;
-	push_scope(&s);
-	declare_globals(&s);
-	/* Functions first see the globals; the shader kind is not known yet, so
-	 * the illuminance checks in functions are made where they are called. */
+	/* The illuminance checks in functions are made where they are called;
+	 * the globals they see are the shader kind's. */
 	s.kind = SL_SHADER_SURFACE;
 	for (uint32_t i = 0; unit && i < unit->nlist; i++) {
 		struct sl_ast *n = unit->list[i];
@@ -1347,6 +1355,8 @@ struct sl_ast *sl_sema(struct sl_ctx *ctx, struct sl_ast *unit)
 	}
 	if (shader)
 		s.kind = (enum sl_shader_kind)shader->op;
+	push_scope(&s);
+	declare_globals(&s);
 	for (uint32_t i = 0; unit && i < unit->nlist && !ctx->too_many; i++) {
 		struct sl_ast *n = unit->list[i];
 		if (n->kind == SL_AST_FUNC)
@@ -1359,7 +1369,8 @@ struct sl_ast *sl_sema(struct sl_ctx *ctx, struct sl_ast *unit)
 	rl_vec_free(s.marks);
 	if (!shader && !ctx->nerrors) {
 		struct sl_loc loc = { 0, 1, 1 };
-		sl_error(ctx, loc, "no shader definition (surface, light or displacement) found");
+		sl_error(ctx, loc, "no shader definition (surface, light, displacement or imager) "
+			 "found");
 	}
 	return ctx->nerrors ? NULL : shader;
 }

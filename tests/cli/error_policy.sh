@@ -18,7 +18,7 @@ identical() {
 }
 
 # ---- every unsupported request of RiSpec 3.2: one warning each, the rest renders ----
-requests="10:ColorSamples 12:ClippingPlane 13:Imager 14:ErrorHandler
+requests="10:ColorSamples 12:ClippingPlane 14:ErrorHandler
 15:Perspective 19:AreaLightSource 21:Resource 22:Shader 23:DisplayChannel 24:Bound
 25:Deformation 26:ArchiveRecord 27:ScopedCoordinateSystem 28:MakeBump 33:SolidBegin
 34:SolidEnd 35:NuPatch 36:TrimCurve 37:SubdivisionMesh 38:Points 39:Curves 40:Blobby

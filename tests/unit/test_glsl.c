@@ -189,7 +189,8 @@ struct xc {
 	size_t src_len;
 };
 
-/* Globals the interpreter sets itself for a surface: not inputs. */
+/* Globals the interpreter sets itself for a surface: not inputs. An
+ * imager's Ci and Oi are the pixel's: inputs (see xc_init). */
 static bool computed_global(int g)
 {
 	return g == SL_GLOBAL_CI || g == SL_GLOBAL_OI || g == SL_GLOBAL_L || g == SL_GLOBAL_CL ||
@@ -219,7 +220,9 @@ static void xc_init(struct xc *c, const char *name, struct sl_program *surf, uin
 	/* Inputs: random, the same recipe for every shader. */
 	rng_seed(0x5eed1234u ^ n);
 	for (int g = 0; g < SL_GLOBAL_COUNT; g++) {
-		if (surf->global_reg[g] < 0 || computed_global(g))
+		bool imager_input = surf->kind == SL_SHADER_IMAGER &&
+				    (g == SL_GLOBAL_CI || g == SL_GLOBAL_OI);
+		if (surf->global_reg[g] < 0 || (computed_global(g) && !imager_input))
 			continue;
 		bool vary = surf->regs[surf->global_reg[g]].varying;
 		int nc = sl_reg_ncomp(&surf->regs[surf->global_reg[g]]);
@@ -1571,6 +1574,36 @@ static void test_other_shaders(void)
 	}
 }
 
+/*
+ * Imager shaders (the GPU runtime's imager pass): the library's background
+ * and one that reads every imager global and a parameter, on random
+ * pixels (Ci, Oi, alpha and P as inputs), against the interpreter.
+ */
+static const char imager_src[] =
+	"imager probe(float k = 0.5; color tint = color(0.2, 0.9, 0.4)) {\n"
+	"	float d = distance(P, point(0.1, 0.2, 0));\n"
+	"	Ci = mix(Ci, tint * comp(Oi, 1), smoothstep(0, 1, d * k)) + ncomps * 0.01;\n"
+	"	alpha = clamp(alpha + time + dtime + 0.25 * sin(xcomp(P) * 3), 0, 1);\n"
+	"}\n";
+static const char *const ci_alpha[] = { "Ci", "alpha" };
+
+static void test_imagers(void)
+{
+	struct sl_program *bg = load("background");
+	CHECK(bg != NULL);
+	if (bg) {
+		struct xc c;
+		xc_init(&c, "background", bg, NPTS);
+		xc_set3(&c, 0, "bgcolor", 0.3f, 0.6f, 0.9f);
+		printf("imager background: largest difference %.3g\n",
+		       xc_check(&c, ci_alpha, 2, TOL));
+		xc_free(&c);
+		sl_program_destroy(bg);
+	}
+	printf("imager probe: largest difference %.3g\n",
+	       check_source("probe", imager_src, ci_alpha, 2, TOL));
+}
+
 /* ------------------------------------------------------------------------ */
 /* Timings: the interpreter and the GPU over a big grid                      */
 
@@ -2837,6 +2870,7 @@ int main(void)
 	RUN(test_flat_expression);
 	RUN(test_per_light);
 	RUN(test_other_shaders);
+	RUN(test_imagers);
 	RUN(test_library_lights);
 	RUN(test_library_surfaces);
 	RUN(test_specialized_library);
