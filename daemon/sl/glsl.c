@@ -1017,12 +1017,18 @@ static void emit_illuminance(struct glsl_gen *g, uint32_t pc)
 		sl_glsl_line(g, "%s = %s;", Pu, sl_glsl_moved(g, in->args[k], 3, 1));
 		sl_glsl_line(g, "%s = %s;", Pv, sl_glsl_moved(g, in->args[k], 3, 2));
 	}
+	/* The lights' Ns: the cone's axis, else the surface's N (the light host's rule). */
+	int32_t Nr = prog->global_reg[SL_GLOBAL_N];
+	const char *Ns = cone ? A : Nr >= 0 ? local_name(g, "iNs", pc) : "vec3(0.0)";
 	if (cone) {
 		declare(g, pc, 8, "vec3", A, "vec3(0.0)");
 		declare(g, pc, 16, "float", N, "0.0");
 		sl_glsl_line(g, "%s = %s;", A, sl_glsl_op(g, in->args[k + 1], 3));
 		sl_glsl_line(g, "%s = %s;", N, sl_glsl_op(g, in->args[k + 2], 1));
 		sl_glsl_need(g, GH_CONE);
+	} else if (Nr >= 0) {
+		declare(g, pc, 8, "vec3", Ns, "vec3(0.0)");
+		sl_glsl_line(g, "%s = %s;", Ns, sl_glsl_op(g, Nr, 3));
 	}
 	bool wrap = p->exits[pc] || crossed(g, pc, end);
 	if (p->exits[pc]) {
@@ -1050,9 +1056,9 @@ static void emit_illuminance(struct glsl_gen *g, uint32_t pc)
 			g->indent++;
 		}
 		if (g->lp[j].moved_ps)
-			sl_glsl_line(g, "light_%u(%s, %s, %s);", j, P, Pu, Pv);
+			sl_glsl_line(g, "light_%u(%s, %s, %s, %s);", j, P, Ns, Pu, Pv);
 		else
-			sl_glsl_line(g, "light_%u(%s);", j, P);
+			sl_glsl_line(g, "light_%u(%s, %s);", j, P, Ns);
 		sl_glsl_line(g, "if (!rl_amb) {");
 		g->indent++;
 		if (Lr >= 0)
@@ -1105,14 +1111,15 @@ static void emit_emit(struct glsl_gen *g, uint32_t pc)
 		sl_glsl_error(g, in, "%s outside a light shader", solar ? "solar" : "illuminate");
 		return;
 	}
-	if (solar && in->nargs == 0) {
-		sl_glsl_error(g, in, "solar without an axis and angle is not supported");
-		return;
-	}
 	int32_t Lr = prog->global_reg[SL_GLOBAL_L], Psr = prog->global_reg[SL_GLOBAL_PS];
+	int32_t Nsr = prog->global_reg[SL_GLOBAL_NS];
 	const char *Lv = local_name(g, "eL", pc);
 	declare(g, pc, 32, "vec3", Lv, "vec3(0.0)");
-	if (solar)
+	/* solar() without arguments: from every direction, L = -Ns (exec.c, op_solar_all). */
+	if (solar && in->nargs == 0)
+		sl_glsl_line(g, "%s = %s;", Lv, Nsr >= 0 ? SL_GLSL_FMT(g, "-%s", p->name[Nsr])
+							 : "vec3(0.0)");
+	else if (solar)
 		sl_glsl_line(g, "%s = %s;", Lv, sl_glsl_op(g, in->args[0], 3));
 	else
 		sl_glsl_line(g, "%s = rl_c(%s - %s);", Lv, Psr >= 0 ? p->name[Psr] : "vec3(0.0)",
@@ -1486,9 +1493,9 @@ static void emit_light(struct glsl_gen *g, uint32_t k)
 	rl_strbuf_printf(&g->sec[GS_UNIFORMS], "uniform mat4 l%u_shader;\n", k);
 	sl_glsl_line(g, "/* light %u: %s */", k, prog->name ? prog->name : "?");
 	if (p->moved_ps)
-		sl_glsl_line(g, "void light_%u(vec3 rl_Ps, vec3 rl_Psu, vec3 rl_Psv) {", k);
+		sl_glsl_line(g, "void light_%u(vec3 rl_Ps, vec3 rl_Ns, vec3 rl_Psu, vec3 rl_Psv) {", k);
 	else
-		sl_glsl_line(g, "void light_%u(vec3 rl_Ps) {", k);
+		sl_glsl_line(g, "void light_%u(vec3 rl_Ps, vec3 rl_Ns) {", k);
 	g->indent++;
 	load_params(g, NULL);
 	const int32_t *gr = prog->global_reg;
@@ -1509,6 +1516,8 @@ static void emit_light(struct glsl_gen *g, uint32_t k)
 			sl_glsl_line(g, "%s = rl_Psv;", moved_name(g, p, r, 2));
 		}
 	}
+	if (gr[SL_GLOBAL_NS] >= 0)
+		sl_glsl_line(g, "%s = rl_Ns;", p->name[gr[SL_GLOBAL_NS]]);
 	/* As the light host does: E and time come from the surface when both have them. */
 	static const int shared[] = { SL_GLOBAL_E, SL_GLOBAL_TIME };
 	for (size_t i = 0; i < sizeof(shared) / sizeof(shared[0]); i++) {
@@ -1887,7 +1896,7 @@ static void analyze_stencils(struct glsl_gen *g)
 		const int32_t *lg = lp->prog->global_reg;
 		if (lg[SL_GLOBAL_PS] >= 0)
 			lp->cls[lg[SL_GLOBAL_PS]] = ps_cls;
-		static const int opaque[] = { SL_GLOBAL_L, SL_GLOBAL_E, SL_GLOBAL_TIME };
+		static const int opaque[] = { SL_GLOBAL_L, SL_GLOBAL_E, SL_GLOBAL_TIME, SL_GLOBAL_NS };
 		for (size_t j = 0; j < sizeof(opaque) / sizeof(opaque[0]); j++)
 			if (lg[opaque[j]] >= 0)
 				lp->cls[lg[opaque[j]]] |= GC_OPAQUE;

@@ -850,18 +850,21 @@ struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *cons
 	}
 	/* The light host gives the lights the surface's E and time (when both
 	 * shaders have them): where the kept code runs lights, they are inputs. */
-	bool runs_lights = false;
+	bool runs_lights = false, axisless = false;
 	for (uint32_t i = 0; i < prog->ncode; i++) {
 		const struct sl_insn *in = &prog->code[i];
+		/* An illuminance without an axis gives the lights the surface's N as Ns. */
+		if (s->keep[i] && in->op == SL_OP_ILLUMINANCE && in->nargs == (uint32_t)in->imm + 1)
+			axisless = true;
 		if (s->keep[i] && (in->op == SL_OP_ILLUMINANCE ||
 				   (in->op == SL_OP_CALL && in->bi >= 0 &&
 				    (sl_builtins[in->bi].flags & SL_BIF_LIGHTS))))
 			runs_lights = true;
 	}
-	static const enum sl_global shared_globals[] = { SL_GLOBAL_E, SL_GLOBAL_TIME };
-	for (size_t g = 0; g < 2 && runs_lights; g++) {
+	static const enum sl_global shared_globals[] = { SL_GLOBAL_E, SL_GLOBAL_TIME, SL_GLOBAL_N };
+	for (size_t g = 0; g < 3 && runs_lights; g++) {
 		int32_t r = prog->global_reg[shared_globals[g]];
-		if (r >= 0 && !s->reg_dynamic[r])
+		if (r >= 0 && !s->reg_dynamic[r] && (g < 2 || axisless))
 			add_unique(&s->cached, &s->ncached, r);
 	}
 	/* Outputs: Ci and Oi always (static ones pass their cached value through),
