@@ -1381,14 +1381,51 @@ static void emit_insn(struct glsl_gen *g, const struct sl_insn *in)
 /* Programs                                                                  */
 
 /* Per-invocation variables for every register of the current program. */
+/*
+ * Which temporaries and locals the emitted code names: those of the kept
+ * instructions and of the parameter defaults. A production shader's dynamic
+ * part is a small slice of it, and declaring all of its registers made the
+ * kernel as long as the whole shader.
+ */
+static uint8_t *used_registers(struct glsl_gen *g)
+{
+	const struct sl_program *prog = g->cur->prog;
+	uint8_t *used = rl_arena_alloc(g->arena, prog->nregs + 1);
+	memset(used, 0, prog->nregs + 1);
+	for (uint32_t pc = 0; pc < prog->ncode; pc++) {
+		if (pc >= prog->body_begin && !kept(g, pc))
+			continue;
+		const struct sl_insn *in = &prog->code[pc];
+		if (in->dst >= 0 && (uint32_t)in->dst < prog->nregs)
+			used[in->dst] = 1;
+		for (uint32_t k = 0; k < in->nargs; k++)
+			if (in->args[k] >= 0 && (uint32_t)in->args[k] < prog->nregs)
+				used[in->args[k]] = 1;
+	}
+	return used;
+}
+
+/* Is register @r declared in the GLSL (see used_registers)? */
+static bool declared_reg(const struct glsl_prog *p, int32_t r)
+{
+	const struct sl_reg *rg = &p->prog->regs[r];
+	if (rg->kind != SL_REG_TEMP && rg->kind != SL_REG_LOCAL)
+		return true;
+	return !p->decl || p->decl[r];
+}
+
 static void declare_registers(struct glsl_gen *g)
 {
 	const struct glsl_prog *p = g->cur;
 	const struct sl_program *prog = p->prog;
 	struct rl_strbuf *b = &g->sec[GS_GLOBALS];
+	uint8_t *used = used_registers(g);
+	g->cur->decl = used;
 	for (uint32_t r = 0; r < prog->nregs; r++) {
 		const struct sl_reg *rg = &prog->regs[r];
 		if (rg->kind == SL_REG_CONST)
+			continue;
+		if (!declared_reg(g->cur, (int32_t)r))
 			continue;
 		int nc = sl_glsl_ncomp(prog, (int32_t)r);
 		if (rg->arraylen) {
@@ -1407,7 +1444,7 @@ static void zero_arrays(struct glsl_gen *g)
 	const struct sl_program *prog = p->prog;
 	for (uint32_t r = 0; r < prog->nregs; r++) {
 		const struct sl_reg *rg = &prog->regs[r];
-		if (rg->kind == SL_REG_CONST || !rg->arraylen)
+		if (rg->kind == SL_REG_CONST || !rg->arraylen || !declared_reg(p, (int32_t)r))
 			continue;
 		sl_glsl_line(g, "for (int k = 0; k < %d; k++) %s[k] = %s;", rg->arraylen, p->name[r],
 			     zero_of(sl_glsl_ncomp(prog, (int32_t)r)));
@@ -2040,7 +2077,7 @@ static void emit_reset(struct glsl_gen *g)
 	g->indent++;
 	for (uint32_t r = 0; r < prog->nregs; r++) {
 		const struct sl_reg *rg = &prog->regs[r];
-		if (rg->kind == SL_REG_CONST || rg->arraylen)
+		if (rg->kind == SL_REG_CONST || rg->arraylen || !declared_reg(p, (int32_t)r))
 			continue;
 		sl_glsl_line(g, "%s = %s;", p->name[r], reg_init(p, (int32_t)r));
 		for (int dir = 1; p->mdecl && dir <= 2; dir++)
