@@ -1555,8 +1555,15 @@ static void emit_light(struct glsl_gen *g, uint32_t k)
 	}
 	if (gr[SL_GLOBAL_NS] >= 0)
 		sl_glsl_line(g, "%s = rl_Ns;", p->name[gr[SL_GLOBAL_NS]]);
-	/* As the light host does: E and time come from the surface when both have them. */
-	static const int shared[] = { SL_GLOBAL_E, SL_GLOBAL_TIME };
+	/* As the light host does: P is the origin of the light's shader space,
+	 * ncomps 3, and E, time and dtime come from the surface when both have them. */
+	if (gr[SL_GLOBAL_P] >= 0) {
+		sl_glsl_need(g, GH_XFORM);
+		sl_glsl_line(g, "%s = rl_xpoint(l%u_shader, vec3(0.0));", p->name[gr[SL_GLOBAL_P]], k);
+	}
+	if (gr[SL_GLOBAL_NCOMPS] >= 0)
+		sl_glsl_line(g, "%s = 3.0;", p->name[gr[SL_GLOBAL_NCOMPS]]);
+	static const int shared[] = { SL_GLOBAL_E, SL_GLOBAL_TIME, SL_GLOBAL_DTIME };
 	for (size_t i = 0; i < sizeof(shared) / sizeof(shared[0]); i++) {
 		int32_t lr = gr[shared[i]], sr = g->surf->global_reg[shared[i]];
 		if (lr >= 0 && sr >= 0 &&
@@ -1933,7 +1940,8 @@ static void analyze_stencils(struct glsl_gen *g)
 		const int32_t *lg = lp->prog->global_reg;
 		if (lg[SL_GLOBAL_PS] >= 0)
 			lp->cls[lg[SL_GLOBAL_PS]] = ps_cls;
-		static const int opaque[] = { SL_GLOBAL_L, SL_GLOBAL_E, SL_GLOBAL_TIME, SL_GLOBAL_NS };
+		static const int opaque[] = { SL_GLOBAL_L, SL_GLOBAL_E, SL_GLOBAL_TIME,
+					      SL_GLOBAL_DTIME, SL_GLOBAL_NS };
 		for (size_t j = 0; j < sizeof(opaque) / sizeof(opaque[0]); j++)
 			if (lg[opaque[j]] >= 0)
 				lp->cls[lg[opaque[j]]] |= GC_OPAQUE;

@@ -787,26 +787,40 @@ static uint8_t *constant_registers(const struct sl_program *p, const struct sl_s
  */
 static void recompute_constants(const struct sl_program *p, struct sl_spec *s, uint8_t *konst)
 {
-	bool changed = true;
-	while (changed) {
-		changed = false;
-		for (uint32_t i = p->body_begin; i < p->ncode; i++) {
-			if (!s->keep[i])
+	/* The writes of each register, as lists through next[]; a worklist of
+	 * the instructions newly kept. */
+	int32_t *head = rl_xmalloc((p->nregs + 1) * sizeof(int32_t));
+	int32_t *next = rl_xmalloc((p->ncode + 1) * sizeof(int32_t));
+	uint32_t *work = rl_xmalloc((p->ncode + 1) * sizeof(uint32_t));
+	for (uint32_t r = 0; r <= p->nregs; r++)
+		head[r] = -1;
+	uint32_t nwork = 0;
+	for (uint32_t i = p->ncode; i-- > p->body_begin;) {
+		int32_t d = p->code[i].dst;
+		if (d >= 0 && konst[d]) {
+			next[i] = head[d];
+			head[d] = (int32_t)i;
+		}
+		if (s->keep[i])
+			work[nwork++] = i;
+	}
+	while (nwork) {
+		const struct sl_insn *in = &p->code[work[--nwork]];
+		for (int k = 0; k < in->nargs; k++) {
+			int32_t a = in->args[k];
+			if (konst[a] != 1)
 				continue;
-			const struct sl_insn *in = &p->code[i];
-			for (int k = 0; k < in->nargs; k++) {
-				int32_t a = in->args[k];
-				if (!konst[a] || konst[a] == 2)
-					continue;
-				konst[a] = 2; /* recomputed */
-				for (uint32_t j = p->body_begin; j < p->ncode; j++)
-					if (p->code[j].dst == a && !s->keep[j]) {
-						s->keep[j] = 1;
-						changed = true;
-					}
-			}
+			konst[a] = 2; /* recomputed */
+			for (int32_t j = head[a]; j >= 0; j = next[j])
+				if (!s->keep[j]) {
+					s->keep[j] = 1;
+					work[nwork++] = (uint32_t)j;
+				}
 		}
 	}
+	free(head);
+	free(next);
+	free(work);
 }
 
 static void add_unique(int32_t **v, uint32_t *n, int32_t r)
@@ -964,7 +978,7 @@ struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *cons
 			}
 		}
 	}
-	/* The light host gives the lights the surface's E and time (when both
+	/* The light host gives the lights the surface's E, time and dtime (when both
 	 * shaders have them): where the kept code runs lights, they are inputs. */
 	bool runs_lights = false, axisless = false;
 	for (uint32_t i = 0; i < prog->ncode; i++) {
@@ -977,10 +991,11 @@ struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *cons
 				    (sl_builtins[in->bi].flags & SL_BIF_LIGHTS))))
 			runs_lights = true;
 	}
-	static const enum sl_global shared_globals[] = { SL_GLOBAL_E, SL_GLOBAL_TIME, SL_GLOBAL_N };
-	for (size_t g = 0; g < 3 && runs_lights; g++) {
+	static const enum sl_global shared_globals[] = { SL_GLOBAL_E, SL_GLOBAL_TIME, SL_GLOBAL_DTIME,
+							 SL_GLOBAL_N };
+	for (size_t g = 0; g < 4 && runs_lights; g++) {
 		int32_t r = prog->global_reg[shared_globals[g]];
-		if (r >= 0 && !s->reg_dynamic[r] && (g < 2 || axisless))
+		if (r >= 0 && !s->reg_dynamic[r] && (g < 3 || axisless))
 			add_unique(&s->cached, &s->ncached, r);
 	}
 	/* Outputs: Ci and Oi always (static ones pass their cached value through),

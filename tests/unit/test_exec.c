@@ -1964,6 +1964,24 @@ static void test_solar_all(void)
 			CHECK_NEAR(R(sx, Cd, c, i), cosl >= 0 ? N[i][c] / len * cosl : 0, 1e-6);
 		}
 	}
+	/* A light's own P is the origin of its shader space; ncomps is 3. */
+	static const char geo_src[] =
+		"light geo() { solar() { Cl = color(xcomp(P), ycomp(P), zcomp(P)) + 10 * ncomps; } }\n";
+	struct sl_program *gp = sl_compile_string("geo.sl", geo_src, strlen(geo_src), NULL);
+	struct sl_exec *gx = gp ? sl_exec_create(gp, NP) : NULL;
+	CHECK(gx != NULL);
+	if (gx) {
+		static const float shader_mat[1][16] = { { 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1, 0,
+							   1, 2, 3, 1 } };
+		sl_lighthost_init(&lh, &gx, 1);
+		lh.light_shader_mats = shader_mat;
+		CHECK(sl_exec_run(sx, &lh.host));
+		for (uint32_t i = 0; i < NP; i++)
+			for (int c = 0; c < 3; c++)
+				CHECK_NEAR(R(sx, Cn, c, i), 31 + c, 1e-6);
+	}
+	sl_exec_destroy(gx);
+	sl_program_destroy(gp);
 	/* Ns outside a light shader is an error. */
 	static const char bad_src[] = "surface bad() { Ci = color(xcomp(Ns), 0, 0); }\n";
 	struct sl_program *bad = sl_compile_string("bad.sl", bad_src, strlen(bad_src), NULL);

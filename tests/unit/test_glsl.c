@@ -1382,7 +1382,7 @@ static void test_illuminance(void)
  * the interpreter): the GPU gives each light the same Ns for every way a
  * surface runs its lights: an illuminance with an axis, one without (the
  * surface's N), diffuse(), specular(), phong() (the normal given) and
- * ambient() (zero).
+ * ambient() (zero); and a light's own P (its shader space's origin) and ncomps.
  */
 static const char allsky_src[] =
 	"light allsky(float k = 2) {\n"
@@ -1392,6 +1392,8 @@ static const char nsprobe_src[] =
 	"light nsprobe(point from = point(0, 0, 10)) {\n"
 	"	illuminate(from) { Cl = color(xcomp(Ns), ycomp(Ns), zcomp(Ns)); }\n"
 	"}\n";
+static const char geo_src[] =
+	"light geo() { solar() { Cl = color(xcomp(P), ycomp(P), zcomp(P)) * 0.1 + ncomps; } }\n";
 static const char ambns_src[] =
 	"light ambns() { Cl = color(xcomp(Ns), ycomp(Ns), zcomp(Ns)) + 0.25; }\n";
 static const char solarsurf_src[] =
@@ -1412,15 +1414,16 @@ static void test_solar_all(void)
 	struct sl_program *sp = compile("solarsurf.sl", solarsurf_src),
 			  *a = compile("allsky.sl", allsky_src),
 			  *b = compile("nsprobe.sl", nsprobe_src),
-			  *amb = compile("ambns.sl", ambns_src);
-	CHECK(sp && a && b && amb);
-	if (sp && a && b && amb) {
+			  *amb = compile("ambns.sl", ambns_src), *geo = compile("geo.sl", geo_src);
+	CHECK(sp && a && b && amb && geo);
+	if (sp && a && b && amb && geo) {
 		struct xc c;
 		xc_init(&c, "solar() without arguments, Ns", sp, NPTS);
 		xc_add(&c, a);
 		xc_setf(&c, 1, "k", 1.5f);
 		xc_add(&c, b);
 		xc_add(&c, amb);
+		xc_add(&c, geo);
 		double e = xc_check(&c, o7, 7, TOL);
 		/* Every point is lit by allsky through the narrowest cone. */
 		const struct sl_program *p = c.prog[0];
@@ -1434,6 +1437,7 @@ static void test_solar_all(void)
 	sl_program_destroy(a);
 	sl_program_destroy(b);
 	sl_program_destroy(amb);
+	sl_program_destroy(geo);
 }
 
 /* Light @j of the per-light test, program @i of @c: its parameters. */
