@@ -1530,7 +1530,8 @@ static void emit_light(struct glsl_gen *g, uint32_t k)
 	rl_strbuf_printf(&g->sec[GS_UNIFORMS], "uniform mat4 l%u_shader;\n", k);
 	sl_glsl_line(g, "/* light %u: %s */", k, prog->name ? prog->name : "?");
 	if (p->moved_ps)
-		sl_glsl_line(g, "void light_%u(vec3 rl_Ps, vec3 rl_Ns, vec3 rl_Psu, vec3 rl_Psv) {", k);
+		sl_glsl_line(g, "void light_%u(vec3 rl_Ps, vec3 rl_Ns, vec3 rl_Psu, vec3 rl_Psv) {",
+			     k);
 	else
 		sl_glsl_line(g, "void light_%u(vec3 rl_Ps, vec3 rl_Ns) {", k);
 	g->indent++;
@@ -1559,7 +1560,8 @@ static void emit_light(struct glsl_gen *g, uint32_t k)
 	 * ncomps 3, and E, time and dtime come from the surface when both have them. */
 	if (gr[SL_GLOBAL_P] >= 0) {
 		sl_glsl_need(g, GH_XFORM);
-		sl_glsl_line(g, "%s = rl_xpoint(l%u_shader, vec3(0.0));", p->name[gr[SL_GLOBAL_P]], k);
+		sl_glsl_line(g, "%s = rl_xpoint(l%u_shader, vec3(0.0));", p->name[gr[SL_GLOBAL_P]],
+			     k);
 	}
 	if (gr[SL_GLOBAL_NCOMPS] >= 0)
 		sl_glsl_line(g, "%s = 3.0;", p->name[gr[SL_GLOBAL_NCOMPS]]);

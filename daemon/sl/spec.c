@@ -991,8 +991,9 @@ struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *cons
 				    (sl_builtins[in->bi].flags & SL_BIF_LIGHTS))))
 			runs_lights = true;
 	}
-	static const enum sl_global shared_globals[] = { SL_GLOBAL_E, SL_GLOBAL_TIME, SL_GLOBAL_DTIME,
-							 SL_GLOBAL_N };
+	static const enum sl_global shared_globals[] = {
+		SL_GLOBAL_E, SL_GLOBAL_TIME, SL_GLOBAL_DTIME, SL_GLOBAL_N,
+	};
 	for (size_t g = 0; g < 4 && runs_lights; g++) {
 		int32_t r = prog->global_reg[shared_globals[g]];
 		if (r >= 0 && !s->reg_dynamic[r] && (g < 3 || axisless))

@@ -87,7 +87,8 @@ static bool run_kernel(struct gpu_ctx *ctx, struct gpu_program *gp,
 	for (int r = -1; r < REPS && ok; r++) {
 		float one;
 		double t0 = rl_now_ms();
-		ok = gpu_dispatch(ctx, gp, b, 2, NSAMPLES) && gpu_buffer_read(out, 0, sizeof(one), &one);
+		ok = gpu_dispatch(ctx, gp, b, 2, NSAMPLES) &&
+		     gpu_buffer_read(out, 0, sizeof(one), &one);
 		if (r < 0)
 			*first = rl_now_ms() - t0;
 		else
