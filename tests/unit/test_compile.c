@@ -95,7 +95,8 @@ static void test_diagnostics(void)
 	expect_error("gather.sl",
 		     "surface s() {\n  gather(\"illuminance\", P, N, 1, 4) { Ci = 1; }\n}\n", 2, 3,
 		     "gather");
-	expect_error("ns.sl", "surface s() {\n  Ci = color(xcomp(Ns), 0, 0);\n}\n", 2, 20, "Ns");
+	expect_error("ns.sl", "surface s() {\n  Ci = color(xcomp(Ns), 0, 0);\n}\n", 2, 20,
+		     "'Ns' is defined only in light shaders");
 	expect_error("uniform.sl", "surface s() {\n  uniform float x = 0;\n  x = s;\n  Ci = x;\n}\n",
 		     3, 0 + 5, "uniform");
 	expect_error("empty.sl", "", 1, 1, NULL);
