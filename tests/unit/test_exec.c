@@ -1982,6 +1982,35 @@ static void test_solar_all(void)
 	}
 	sl_exec_destroy(gx);
 	sl_program_destroy(gp);
+	/* dtime (and time) come from the surface, when both shaders have them. */
+	static const char dtl_src[] = "light dtl() { solar() { Cl = color(dtime, time, 0); } }\n";
+	static const char dts_src[] =
+		"surface dts(output varying color c = 0) {\n"
+		"	float d = dtime + time;\n"
+		"	illuminance(P) c += Cl;\n"
+		"	Ci = d;\n"
+		"}\n";
+	struct sl_program *dlp = sl_compile_string("dtl.sl", dtl_src, strlen(dtl_src), NULL);
+	struct sl_program *dsp = sl_compile_string("dts.sl", dts_src, strlen(dts_src), NULL);
+	struct sl_exec *dlx = dlp ? sl_exec_create(dlp, NP) : NULL;
+	struct sl_exec *dsx = dsp ? sl_exec_create(dsp, NP) : NULL;
+	CHECK(dlx && dsx);
+	if (dlx && dsx) {
+		bool v;
+		sl_exec_global(dsx, SL_GLOBAL_DTIME, &v)[0] = 0.25f;
+		sl_exec_global(dsx, SL_GLOBAL_TIME, &v)[0] = 0.5f;
+		sl_lighthost_init(&lh, &dlx, 1);
+		CHECK(sl_exec_run(dsx, &lh.host));
+		int32_t c = out_reg(dsp, "c");
+		for (uint32_t i = 0; i < NP; i++) {
+			CHECK_NEAR(R(dsx, c, 0, i), 0.25f, 0);
+			CHECK_NEAR(R(dsx, c, 1, i), 0.5f, 0);
+		}
+	}
+	sl_exec_destroy(dlx);
+	sl_exec_destroy(dsx);
+	sl_program_destroy(dlp);
+	sl_program_destroy(dsp);
 	/* Ns outside a light shader is an error. */
 	static const char bad_src[] = "surface bad() { Ci = color(xcomp(Ns), 0, 0); }\n";
 	struct sl_program *bad = sl_compile_string("bad.sl", bad_src, strlen(bad_src), NULL);
