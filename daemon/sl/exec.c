@@ -1688,11 +1688,9 @@ static uint32_t op_illuminance(struct sl_exec *x, const struct sl_insn *in, uint
  * lights with: every point is lit and no illuminance cone about that normal
  * culls it. Such a light integrates over directions itself.
  */
-static uint32_t op_solar_all(struct sl_exec *x, struct frame *f, uint32_t pc, uint32_t base,
-			     uint32_t end)
+static uint32_t op_solar_all(struct sl_exec *x, uint32_t pc, uint32_t base, uint32_t end)
 {
 	const struct sl_program *prog = x->prog;
-	(void)f;
 	int32_t Lr = prog->global_reg[SL_GLOBAL_L], Nsr = prog->global_reg[SL_GLOBAL_NS];
 	sl_exec_add_ops(x, 3u, x->nactive);
 	uint32_t first = first_lane(x);
@@ -1718,7 +1716,7 @@ static uint32_t op_emit(struct sl_exec *x, const struct sl_insn *in, uint32_t pc
 	int32_t Lr = prog->global_reg[SL_GLOBAL_L], Psr = prog->global_reg[SL_GLOBAL_PS];
 	bool solar = in->op == SL_OP_SOLAR;
 	if (solar && in->nargs == 0)
-		return op_solar_all(x, f, pc, base, end);
+		return op_solar_all(x, pc, base, end); /* in the block frame just opened */
 	bool cone = !solar && in->nargs == 3;
 	int32_t Pa = solar ? -1 : in->args[0];
 	int32_t axr = solar ? in->args[0] : cone ? in->args[1] : -1;
