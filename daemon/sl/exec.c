@@ -87,7 +87,7 @@ const uint8_t sl_exec_global_ncomp[SL_GLOBAL_COUNT] = {
 	[SL_GLOBAL_DPDV] = 3, [SL_GLOBAL_L] = 3, [SL_GLOBAL_CL] = 3, [SL_GLOBAL_OL] = 3,
 	[SL_GLOBAL_PS] = 3, [SL_GLOBAL_NCOMPS] = 1, [SL_GLOBAL_TIME] = 1,
 	[SL_GLOBAL_DTIME] = 1, [SL_GLOBAL_DPDTIME] = 3,
-	[SL_GLOBAL_ALPHA] = 1,
+	[SL_GLOBAL_ALPHA] = 1, [SL_GLOBAL_NS] = 3,
 };
 
 /* ------------------------------------------------------------------------ */
@@ -1285,7 +1285,7 @@ const char *sl_exec_light_category(struct sl_exec *x, int i)
 	return s ? s : "";
 }
 
-bool sl_exec_light(struct sl_exec *x, int i, int slot, const float *Ps,
+bool sl_exec_light(struct sl_exec *x, int i, int slot, const float *Ps, const float *Ns,
 		   struct sl_light_result *res)
 {
 	const struct sl_host *h = x->host;
@@ -1303,7 +1303,7 @@ bool sl_exec_light(struct sl_exec *x, int i, int slot, const float *Ps,
 		memset(L + c * s, 0, x->n * sizeof(float));
 	memset(lit, 0, x->n);
 	bool ambient = false;
-	if (!h->light(h->user, i, x, x->n, x->stride, x->mask, Ps, L, Cl, Ol, lit, &ambient))
+	if (!h->light(h->user, i, x, x->n, x->stride, x->mask, Ps, Ns, L, Cl, Ol, lit, &ambient))
 		return false;
 	res->L = L;
 	res->Cl = Cl;
@@ -1619,7 +1619,7 @@ static uint32_t next_light(struct sl_exec *x, struct frame *f, uint32_t base, ui
 		if (!x->nactive)
 			break;
 		struct sl_light_result r;
-		if (!sl_exec_light(x, li, 0, f->buf, &r) || r.ambient)
+		if (!sl_exec_light(x, li, 0, f->buf, f->buf + 3 * s, &r) || r.ambient)
 			continue;
 		store_triple(x, prog->global_reg[SL_GLOBAL_L], r.L);
 		store_triple(x, prog->global_reg[SL_GLOBAL_CL], r.Cl);
@@ -1667,9 +1667,15 @@ static uint32_t op_illuminance(struct sl_exec *x, const struct sl_insn *in, uint
 	f->cat = k ? sget(x, in->args[0], 0, first_lane(x)) : NULL;
 	snapshot(x, in->args[k], f->buf, 3);
 	f->cone = in->nargs == k + 3;
+	/* The lights' Ns: the cone's axis, else the surface's N (zero without one). */
+	int32_t Nr = x->prog->global_reg[SL_GLOBAL_N];
 	if (f->cone) {
 		snapshot(x, in->args[k + 1], f->buf + 3 * s, 3);
 		snapshot(x, in->args[k + 2], f->buf + 6 * s, 1);
+	} else if (Nr >= 0) {
+		snapshot(x, Nr, f->buf + 3 * s, 3);
+	} else {
+		memset(f->buf + 3 * s, 0, 3 * s * sizeof(float));
 	}
 	f->saved_light = x->cur_light;
 	f->light = -1;
@@ -1677,19 +1683,41 @@ static uint32_t op_illuminance(struct sl_exec *x, const struct sl_insn *in, uint
 	return next_light(x, f, base, end);
 }
 
+/*
+ * solar() without arguments: light from every direction, as prman and Aqsis
+ * run it. L is -Ns, so the surface sees L along the normal it evaluates the
+ * lights with: every point is lit and no illuminance cone about that normal
+ * culls it. Such a light integrates over directions itself.
+ */
+static uint32_t op_solar_all(struct sl_exec *x, uint32_t pc, uint32_t base, uint32_t end)
+{
+	const struct sl_program *prog = x->prog;
+	int32_t Lr = prog->global_reg[SL_GLOBAL_L], Nsr = prog->global_reg[SL_GLOBAL_NS];
+	sl_exec_add_ops(x, 3u, x->nactive);
+	uint32_t first = first_lane(x);
+	for (uint32_t i = 0; i < x->n; i++) {
+		if (!x->mask[i])
+			continue;
+		if (Lr >= 0 && (sl_x_varying(x, Lr) || i == first))
+			for (int c = 0; c < 3; c++)
+				sl_x_set(x, Lr, c, i, Nsr >= 0 ? -ld(x, Nsr, c, i) : 0.0f);
+		x->lit[i] = 1;
+	}
+	x->ran_illuminate = true;
+	return next_pc(x, pc + 1, base, end);
+}
+
 /* ILLUMINATE and SOLAR: choose the points the body runs for, mark them lit. */
 static uint32_t op_emit(struct sl_exec *x, const struct sl_insn *in, uint32_t pc, uint32_t base,
 			uint32_t end)
 {
 	const struct sl_program *prog = x->prog;
-	if (in->op == SL_OP_SOLAR && in->nargs == 0) {
-		sl_exec_fail(x, in, "solar without an axis and angle is not supported");
-		return end;
-	}
 	struct frame *f = push_frame(x, F_BLOCK, pc);
 	memcpy(f->m[0], x->mask, x->n);
 	int32_t Lr = prog->global_reg[SL_GLOBAL_L], Psr = prog->global_reg[SL_GLOBAL_PS];
 	bool solar = in->op == SL_OP_SOLAR;
+	if (solar && in->nargs == 0)
+		return op_solar_all(x, pc, base, end); /* in the block frame just opened */
 	bool cone = !solar && in->nargs == 3;
 	int32_t Pa = solar ? -1 : in->args[0];
 	int32_t axr = solar ? in->args[0] : cone ? in->args[1] : -1;

@@ -27,7 +27,11 @@ struct sl_host {
 	int (*nlights)(void *user);
 	/**
 	 * Run light @i for the points of @surface where mask[i] is set (n points,
-	 * planar with @stride). Ps: surface positions (3 planes). Fill, for those
+	 * planar with @stride). Ps: surface positions (3 planes). Ns: the normal
+	 * the lights are evaluated with (3 planes; NULL: zero), the light's Ns:
+	 * the axis of an illuminance, the surface's N for an illuminance without
+	 * one, the normal given to diffuse(), specular() or phong(), zero for
+	 * ambient(). Fill, for those
 	 * points: L: vector from the surface point to the light (3 planes);
 	 * Cl, Ol (3 planes each); lit[i] = 1 where the light reaches the point
 	 * (inside its illuminate cone), else 0. *ambient = true for a light with
@@ -35,8 +39,8 @@ struct sl_host {
 	 * Return false on failure (treated as no light).
 	 */
 	bool (*light)(void *user, int i, struct sl_exec *surface, uint32_t n, uint32_t stride,
-		      const uint8_t *mask, const float *Ps, float *L, float *Cl, float *Ol,
-		      uint8_t *lit, bool *ambient);
+		      const uint8_t *mask, const float *Ps, const float *Ns, float *L,
+		      float *Cl, float *Ol, uint8_t *lit, bool *ambient);
 	/** Light @i's __category string ("" when none). */
 	const char *(*light_category)(void *user, int i);
 	/**

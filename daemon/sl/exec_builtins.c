@@ -949,10 +949,17 @@ static void do_lighting(struct sl_exec *x, const struct sl_insn *in, int id)
 	const float *Ps = global_planes(x, SL_GLOBAL_P);
 	const char *skip = id == SL_BI_DIFFUSE ? "__nondiffuse" :
 			   id == SL_BI_AMBIENT ? NULL : "__nonspecular";
+	/* The lights' Ns: the normal given, none for ambient(). */
+	float *Ns = NULL;
+	if (id != SL_BI_AMBIENT) {
+		Ns = sl_exec_scratch(x, 3 * s);
+		for (int c = 0; c < 3; c++)
+			memcpy(Ns + c * s, plane_of(x, a[0], c), n * sizeof(float));
+	}
 	int nl = sl_exec_nlights(x);
 	for (int li = 0; li < nl && !x->failed; li++) {
 		struct sl_light_result res;
-		if (!sl_exec_light(x, li, 0, Ps, &res))
+		if (!sl_exec_light(x, li, 0, Ps, Ns, &res))
 			continue;
 		if (id == SL_BI_AMBIENT) {
 			if (!res.ambient)

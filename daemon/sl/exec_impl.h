@@ -182,12 +182,13 @@ struct sl_light_result {
 int sl_exec_nlights(struct sl_exec *x);
 
 /**
- * Evaluate light @i at positions @Ps (3 planes, stride x->stride) for the
- * active points. Buffers in @res are scratch owned by @x and stay valid
- * until the next call of sl_exec_light() with the same @slot (0 or 1).
+ * Evaluate light @i at positions @Ps with normals @Ns (3 planes each, stride
+ * x->stride; @Ns may be NULL: zero) for the active points. Buffers in @res
+ * are scratch owned by @x and stay valid until the next call of
+ * sl_exec_light() with the same @slot (0 or 1).
  * False if the host failed or has no lights.
  */
-bool sl_exec_light(struct sl_exec *x, int i, int slot, const float *Ps,
+bool sl_exec_light(struct sl_exec *x, int i, int slot, const float *Ps, const float *Ns,
 		   struct sl_light_result *res);
 
 /** Light @i's category ("" when none). */

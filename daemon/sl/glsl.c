@@ -1017,12 +1017,18 @@ static void emit_illuminance(struct glsl_gen *g, uint32_t pc)
 		sl_glsl_line(g, "%s = %s;", Pu, sl_glsl_moved(g, in->args[k], 3, 1));
 		sl_glsl_line(g, "%s = %s;", Pv, sl_glsl_moved(g, in->args[k], 3, 2));
 	}
+	/* The lights' Ns: the cone's axis, else the surface's N (the light host's rule). */
+	int32_t Nr = prog->global_reg[SL_GLOBAL_N];
+	const char *Ns = cone ? A : Nr >= 0 ? local_name(g, "iNs", pc) : "vec3(0.0)";
 	if (cone) {
 		declare(g, pc, 8, "vec3", A, "vec3(0.0)");
 		declare(g, pc, 16, "float", N, "0.0");
 		sl_glsl_line(g, "%s = %s;", A, sl_glsl_op(g, in->args[k + 1], 3));
 		sl_glsl_line(g, "%s = %s;", N, sl_glsl_op(g, in->args[k + 2], 1));
 		sl_glsl_need(g, GH_CONE);
+	} else if (Nr >= 0) {
+		declare(g, pc, 8, "vec3", Ns, "vec3(0.0)");
+		sl_glsl_line(g, "%s = %s;", Ns, sl_glsl_op(g, Nr, 3));
 	}
 	bool wrap = p->exits[pc] || crossed(g, pc, end);
 	if (p->exits[pc]) {
@@ -1050,9 +1056,9 @@ static void emit_illuminance(struct glsl_gen *g, uint32_t pc)
 			g->indent++;
 		}
 		if (g->lp[j].moved_ps)
-			sl_glsl_line(g, "light_%u(%s, %s, %s);", j, P, Pu, Pv);
+			sl_glsl_line(g, "light_%u(%s, %s, %s, %s);", j, P, Ns, Pu, Pv);
 		else
-			sl_glsl_line(g, "light_%u(%s);", j, P);
+			sl_glsl_line(g, "light_%u(%s, %s);", j, P, Ns);
 		sl_glsl_line(g, "if (!rl_amb) {");
 		g->indent++;
 		if (Lr >= 0)
@@ -1105,14 +1111,15 @@ static void emit_emit(struct glsl_gen *g, uint32_t pc)
 		sl_glsl_error(g, in, "%s outside a light shader", solar ? "solar" : "illuminate");
 		return;
 	}
-	if (solar && in->nargs == 0) {
-		sl_glsl_error(g, in, "solar without an axis and angle is not supported");
-		return;
-	}
 	int32_t Lr = prog->global_reg[SL_GLOBAL_L], Psr = prog->global_reg[SL_GLOBAL_PS];
+	int32_t Nsr = prog->global_reg[SL_GLOBAL_NS];
 	const char *Lv = local_name(g, "eL", pc);
 	declare(g, pc, 32, "vec3", Lv, "vec3(0.0)");
-	if (solar)
+	/* solar() without arguments: from every direction, L = -Ns (exec.c, op_solar_all). */
+	if (solar && in->nargs == 0)
+		sl_glsl_line(g, "%s = %s;", Lv, Nsr >= 0 ? SL_GLSL_FMT(g, "-%s", p->name[Nsr])
+							 : "vec3(0.0)");
+	else if (solar)
 		sl_glsl_line(g, "%s = %s;", Lv, sl_glsl_op(g, in->args[0], 3));
 	else
 		sl_glsl_line(g, "%s = rl_c(%s - %s);", Lv, Psr >= 0 ? p->name[Psr] : "vec3(0.0)",
@@ -1374,14 +1381,51 @@ static void emit_insn(struct glsl_gen *g, const struct sl_insn *in)
 /* Programs                                                                  */
 
 /* Per-invocation variables for every register of the current program. */
+/*
+ * Which temporaries and locals the emitted code names: those of the kept
+ * instructions and of the parameter defaults. A production shader's dynamic
+ * part is a small slice of it, and declaring all of its registers made the
+ * kernel as long as the whole shader.
+ */
+static uint8_t *used_registers(struct glsl_gen *g)
+{
+	const struct sl_program *prog = g->cur->prog;
+	uint8_t *used = rl_arena_alloc(g->arena, prog->nregs + 1);
+	memset(used, 0, prog->nregs + 1);
+	for (uint32_t pc = 0; pc < prog->ncode; pc++) {
+		if (pc >= prog->body_begin && !kept(g, pc))
+			continue;
+		const struct sl_insn *in = &prog->code[pc];
+		if (in->dst >= 0 && (uint32_t)in->dst < prog->nregs)
+			used[in->dst] = 1;
+		for (uint32_t k = 0; k < in->nargs; k++)
+			if (in->args[k] >= 0 && (uint32_t)in->args[k] < prog->nregs)
+				used[in->args[k]] = 1;
+	}
+	return used;
+}
+
+/* Is register @r declared in the GLSL (see used_registers)? */
+static bool declared_reg(const struct glsl_prog *p, int32_t r)
+{
+	const struct sl_reg *rg = &p->prog->regs[r];
+	if (rg->kind != SL_REG_TEMP && rg->kind != SL_REG_LOCAL)
+		return true;
+	return !p->decl || p->decl[r];
+}
+
 static void declare_registers(struct glsl_gen *g)
 {
 	const struct glsl_prog *p = g->cur;
 	const struct sl_program *prog = p->prog;
 	struct rl_strbuf *b = &g->sec[GS_GLOBALS];
+	uint8_t *used = used_registers(g);
+	g->cur->decl = used;
 	for (uint32_t r = 0; r < prog->nregs; r++) {
 		const struct sl_reg *rg = &prog->regs[r];
 		if (rg->kind == SL_REG_CONST)
+			continue;
+		if (!declared_reg(g->cur, (int32_t)r))
 			continue;
 		int nc = sl_glsl_ncomp(prog, (int32_t)r);
 		if (rg->arraylen) {
@@ -1400,7 +1444,7 @@ static void zero_arrays(struct glsl_gen *g)
 	const struct sl_program *prog = p->prog;
 	for (uint32_t r = 0; r < prog->nregs; r++) {
 		const struct sl_reg *rg = &prog->regs[r];
-		if (rg->kind == SL_REG_CONST || !rg->arraylen)
+		if (rg->kind == SL_REG_CONST || !rg->arraylen || !declared_reg(p, (int32_t)r))
 			continue;
 		sl_glsl_line(g, "for (int k = 0; k < %d; k++) %s[k] = %s;", rg->arraylen, p->name[r],
 			     zero_of(sl_glsl_ncomp(prog, (int32_t)r)));
@@ -1486,9 +1530,10 @@ static void emit_light(struct glsl_gen *g, uint32_t k)
 	rl_strbuf_printf(&g->sec[GS_UNIFORMS], "uniform mat4 l%u_shader;\n", k);
 	sl_glsl_line(g, "/* light %u: %s */", k, prog->name ? prog->name : "?");
 	if (p->moved_ps)
-		sl_glsl_line(g, "void light_%u(vec3 rl_Ps, vec3 rl_Psu, vec3 rl_Psv) {", k);
+		sl_glsl_line(g, "void light_%u(vec3 rl_Ps, vec3 rl_Ns, vec3 rl_Psu, vec3 rl_Psv) {",
+			     k);
 	else
-		sl_glsl_line(g, "void light_%u(vec3 rl_Ps) {", k);
+		sl_glsl_line(g, "void light_%u(vec3 rl_Ps, vec3 rl_Ns) {", k);
 	g->indent++;
 	load_params(g, NULL);
 	const int32_t *gr = prog->global_reg;
@@ -1509,8 +1554,18 @@ static void emit_light(struct glsl_gen *g, uint32_t k)
 			sl_glsl_line(g, "%s = rl_Psv;", moved_name(g, p, r, 2));
 		}
 	}
-	/* As the light host does: E and time come from the surface when both have them. */
-	static const int shared[] = { SL_GLOBAL_E, SL_GLOBAL_TIME };
+	if (gr[SL_GLOBAL_NS] >= 0)
+		sl_glsl_line(g, "%s = rl_Ns;", p->name[gr[SL_GLOBAL_NS]]);
+	/* As the light host does: P is the origin of the light's shader space,
+	 * ncomps 3, and E, time and dtime come from the surface when both have them. */
+	if (gr[SL_GLOBAL_P] >= 0) {
+		sl_glsl_need(g, GH_XFORM);
+		sl_glsl_line(g, "%s = rl_xpoint(l%u_shader, vec3(0.0));", p->name[gr[SL_GLOBAL_P]],
+			     k);
+	}
+	if (gr[SL_GLOBAL_NCOMPS] >= 0)
+		sl_glsl_line(g, "%s = 3.0;", p->name[gr[SL_GLOBAL_NCOMPS]]);
+	static const int shared[] = { SL_GLOBAL_E, SL_GLOBAL_TIME, SL_GLOBAL_DTIME };
 	for (size_t i = 0; i < sizeof(shared) / sizeof(shared[0]); i++) {
 		int32_t lr = gr[shared[i]], sr = g->surf->global_reg[shared[i]];
 		if (lr >= 0 && sr >= 0 &&
@@ -1887,7 +1942,8 @@ static void analyze_stencils(struct glsl_gen *g)
 		const int32_t *lg = lp->prog->global_reg;
 		if (lg[SL_GLOBAL_PS] >= 0)
 			lp->cls[lg[SL_GLOBAL_PS]] = ps_cls;
-		static const int opaque[] = { SL_GLOBAL_L, SL_GLOBAL_E, SL_GLOBAL_TIME };
+		static const int opaque[] = { SL_GLOBAL_L, SL_GLOBAL_E, SL_GLOBAL_TIME,
+					      SL_GLOBAL_DTIME, SL_GLOBAL_NS };
 		for (size_t j = 0; j < sizeof(opaque) / sizeof(opaque[0]); j++)
 			if (lg[opaque[j]] >= 0)
 				lp->cls[lg[opaque[j]]] |= GC_OPAQUE;
@@ -2031,7 +2087,7 @@ static void emit_reset(struct glsl_gen *g)
 	g->indent++;
 	for (uint32_t r = 0; r < prog->nregs; r++) {
 		const struct sl_reg *rg = &prog->regs[r];
-		if (rg->kind == SL_REG_CONST || rg->arraylen)
+		if (rg->kind == SL_REG_CONST || rg->arraylen || !declared_reg(p, (int32_t)r))
 			continue;
 		sl_glsl_line(g, "%s = %s;", p->name[r], reg_init(p, (int32_t)r));
 		for (int dir = 1; p->mdecl && dir <= 2; dir++)

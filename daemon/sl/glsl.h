@@ -15,7 +15,7 @@
 
 /** The part of a program to emit, and where its data comes from. */
 /** Bumped whenever the generated code changes for the same input. */
-#define SL_GLSL_GENERATOR_VERSION 4
+#define SL_GLSL_GENERATOR_VERSION 5
 
 struct sl_slice {
 	const struct sl_program *prog;

@@ -1419,6 +1419,13 @@ static const char *space_product(struct glsl_gen *g, const struct sl_insn *in, c
 static const char *space_name(struct glsl_gen *g, const struct sl_insn *in, int32_t r)
 {
 	const char *s = sl_glsl_cstr(g, r);
+	/* In a light, as for its maps: what the GPU cannot follow yet is a warning
+	 * (a map's direction, such as envlight's envspace, goes to no map). */
+	if (!s && g->cur->light >= 0) {
+		sl_glsl_warning(g, in, "a coordinate system named by a variable in a light shader: "
+				"the GPU uses \"current\"");
+		return "";
+	}
 	if (!s)
 		sl_glsl_error(g, in, "coordinate system names must be constant strings on the GPU");
 	return s;
@@ -1632,7 +1639,7 @@ static void emit_lit(struct glsl_gen *g, enum glsl_lighting w, int k)
 void sl_glsl_emit_lighting(struct glsl_gen *g, enum glsl_lighting w)
 {
 	static const char *const head[GL_COUNT][2] = {
-		{ "vec3 rl_ambient(vec3 Ps", ") {" },
+		{ "vec3 rl_ambient(vec3 Ps", ") {" }, /* the lights' Ns: zero */
 		{ "vec3 rl_diffuse(vec3 Ps", ", vec3 N) {" },
 		{ "vec3 rl_specular(vec3 Ps", ", vec3 N, vec3 V, float rough) {" },
 		{ "vec3 rl_phong(vec3 Ps", ", vec3 N, vec3 V, float size) {" },
@@ -1656,7 +1663,12 @@ void sl_glsl_emit_lighting(struct glsl_gen *g, enum glsl_lighting w)
 			sl_glsl_line(g, "if (rl_only == %u) {", k);
 			g->indent++;
 		}
-		sl_glsl_line(g, g->lp[k].moved_ps ? "light_%u(Ps, Psu, Psv);" : "light_%u(Ps);", k);
+		/* The lights' Ns: the normal given, none for ambient() (the light host's rule). */
+		const char *Ns = w == GL_AMBIENT ? "vec3(0.0)" : "N";
+		if (g->lp[k].moved_ps)
+			sl_glsl_line(g, "light_%u(Ps, %s, Psu, Psv);", k, Ns);
+		else
+			sl_glsl_line(g, "light_%u(Ps, %s);", k, Ns);
 		if (w == GL_AMBIENT)
 			sl_glsl_line(g, g->lp[k].static_ambient ? "acc += rl_Cl;"
 								: "if (rl_amb) acc += rl_Cl;");

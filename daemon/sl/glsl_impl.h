@@ -77,6 +77,7 @@ struct glsl_prog {
 	uint8_t *cls;            /* per register: GC_* bits */
 	uint8_t *need;           /* per register: kept with copies moved along u and v */
 	uint8_t *mdecl;          /* per register: moved copies declared (bit 1 u, bit 2 v) */
+	uint8_t *decl;           /* per register: declared (the temporaries the code names) */
 	int32_t *copy_of;        /* per register: the one register a MOV copies into it, or -1 */
 	int32_t *site;           /* per instruction: its shadow() site, or -1 */
 	bool moved_ps;           /* a light called with Ps moved along u and v too */

@@ -18,6 +18,7 @@ enum sl_global {
 	SL_GLOBAL_DPDU, SL_GLOBAL_DPDV, SL_GLOBAL_L, SL_GLOBAL_CL, SL_GLOBAL_OL,
 	SL_GLOBAL_PS, SL_GLOBAL_NCOMPS, SL_GLOBAL_TIME, SL_GLOBAL_DTIME, SL_GLOBAL_DPDTIME,
 	SL_GLOBAL_ALPHA,      /* imager shaders only: the pixel's coverage */
+	SL_GLOBAL_NS,        /* light shaders: the normal the lights are evaluated with */
 	SL_GLOBAL_COUNT
 };
 

@@ -54,6 +54,28 @@ static void copy_global(struct sl_exec *to, struct sl_exec *from, enum sl_global
 		}
 }
 
+/* Set triple global @g of @lx from 3 planes @src (NULL: zero; first active point if uniform). */
+static void put_planes(struct sl_exec *lx, enum sl_global g, const float *src, uint32_t n,
+		       uint32_t stride, const uint8_t *mask)
+{
+	bool v;
+	float *d = sl_exec_global(lx, g, &v);
+	if (!d)
+		return;
+	uint32_t first = 0;
+	while (first + 1 < n && !mask[first])
+		first++;
+	for (int c = 0; c < 3; c++) {
+		const float *s = src ? src + (size_t)c * stride : NULL;
+		if (v && s)
+			memcpy(d + (size_t)c * lx->stride, s, n * sizeof(float));
+		else if (v)
+			memset(d + (size_t)c * lx->stride, 0, n * sizeof(float));
+		else
+			d[c] = s ? s[first] : 0.0f;
+	}
+}
+
 /* Value of component @c of a global at point @i (0 when the shader has none). */
 static float global_at(struct sl_exec *x, enum sl_global g, int c, uint32_t i)
 {
@@ -64,9 +86,40 @@ static float global_at(struct sl_exec *x, enum sl_global g, int c, uint32_t i)
 	return v ? d[(size_t)c * x->stride + i] : d[c];
 }
 
+static bool lh_space(void *user, const char *name, float m[16]);
+
+/* Fill every point of float or triple global @g of @x with @v. */
+static void fill_global(struct sl_exec *x, enum sl_global g, const float *v, int ncomp, uint32_t n)
+{
+	bool vary;
+	float *d = sl_exec_global(x, g, &vary);
+	if (!d)
+		return;
+	for (int c = 0; c < ncomp; c++)
+		for (uint32_t k = 0; k < (vary ? n : 1); k++)
+			d[(size_t)c * (vary ? x->stride : 1) + k] = v[c];
+}
+
+/*
+ * The light's own geometry, as RISpec gives it to a light that is not an
+ * area light: P is the origin of its shader space, ncomps 3 (N, s, t, ...
+ * are zero: never set).
+ */
+static void light_geometry(struct sl_lighthost *lh, struct sl_exec *lx, uint32_t n)
+{
+	float m[16], o[3] = { 0, 0, 0 }, three = 3;
+	if (lh_space(lh, "shader", m)) {
+		float w = m[15];
+		for (int c = 0; c < 3; c++)
+			o[c] = w != 0 && w != 1 ? m[12 + c] / w : m[12 + c];
+	}
+	fill_global(lx, SL_GLOBAL_P, o, 3, n);
+	fill_global(lx, SL_GLOBAL_NCOMPS, &three, 1, n);
+}
+
 static bool lh_light(void *user, int i, struct sl_exec *surface, uint32_t n, uint32_t stride,
-		     const uint8_t *mask, const float *Ps, float *L, float *Cl, float *Ol,
-		     uint8_t *lit, bool *ambient)
+		     const uint8_t *mask, const float *Ps, const float *Ns, float *L, float *Cl,
+		     float *Ol, uint8_t *lit, bool *ambient)
 {
 	struct sl_lighthost *lh = user;
 	struct sl_exec *lx = light_at(lh, i);
@@ -90,26 +143,16 @@ static bool lh_light(void *user, int i, struct sl_exec *surface, uint32_t n, uin
 	if (!sl_exec_set_stencil(lx, m, surface->stencil_du, surface->stencil_dv))
 		return false;
 
-	bool pv;
-	float *dps = sl_exec_global(lx, SL_GLOBAL_PS, &pv);
-	if (dps) {
-		uint32_t first = 0;
-		while (first + 1 < n && !mask[first])
-			first++;
-		for (int c = 0; c < 3; c++) {
-			if (pv)
-				memcpy(dps + (size_t)c * lx->stride, Ps + (size_t)c * stride,
-				       n * sizeof(float));
-			else
-				dps[c] = Ps[(size_t)c * stride + first];
-		}
-	}
+	put_planes(lx, SL_GLOBAL_PS, Ps, n, stride, mask);
+	put_planes(lx, SL_GLOBAL_NS, Ns, n, stride, mask);
 	copy_global(lx, surface, SL_GLOBAL_E, 3, mask);
 	copy_global(lx, surface, SL_GLOBAL_TIME, 1, mask);
+	copy_global(lx, surface, SL_GLOBAL_DTIME, 1, mask);
 
 	sl_exec_set_peer(lx, SL_PEER_SURFACE, surface);
 	int outer = lh->running;
 	lh->running = i;
+	light_geometry(lh, lx, n);
 	bool ok = sl_exec_run(lx, &lh->host);
 	lh->running = outer;
 	sl_exec_set_peer(lx, SL_PEER_SURFACE, NULL);

@@ -39,8 +39,9 @@ struct sl_lighthost {
 /**
  * Set up @lh over @nlights light executors (@lights may be NULL when
  * @nlights is 0). Each light is run on demand, on the surface's grid shape,
- * with Ps (and E and time when both shaders have them) copied from the
- * surface; it therefore needs at least as many points as the surface grid
+ * with Ps and Ns (the normal the surface evaluates the lights with, see
+ * struct sl_host) and E, time and dtime (when both shaders have them) copied from
+ * the surface; it therefore needs at least as many points as the surface grid
  * (else it is left out, with a warning). A surface running on derivative
  * stencils (sl_exec_set_stencil) passes its stencil to every light it runs.
  */

@@ -60,6 +60,7 @@ static const char *const global_names[SL_GLOBAL_COUNT] = {
 	[SL_GLOBAL_CL] = "Cl", [SL_GLOBAL_OL] = "Ol", [SL_GLOBAL_PS] = "Ps",
 	[SL_GLOBAL_NCOMPS] = "ncomps", [SL_GLOBAL_TIME] = "time", [SL_GLOBAL_DTIME] = "dtime",
 	[SL_GLOBAL_DPDTIME] = "dPdtime", [SL_GLOBAL_ALPHA] = "alpha",
+	[SL_GLOBAL_NS] = "Ns",
 };
 
 const char *sl_global_name(enum sl_global g)
@@ -73,7 +74,7 @@ struct sl_type sl_global_type(enum sl_global g)
 	switch (g) {
 	case SL_GLOBAL_P: case SL_GLOBAL_PS: t.base = SL_TYPE_POINT; break;
 	case SL_GLOBAL_E: t.base = SL_TYPE_POINT; t.detail = SL_DETAIL_UNIFORM; break;
-	case SL_GLOBAL_N: case SL_GLOBAL_NG: t.base = SL_TYPE_NORMAL; break;
+	case SL_GLOBAL_N: case SL_GLOBAL_NG: case SL_GLOBAL_NS: t.base = SL_TYPE_NORMAL; break;
 	case SL_GLOBAL_CS: case SL_GLOBAL_OS: case SL_GLOBAL_CI: case SL_GLOBAL_OI:
 	case SL_GLOBAL_CL: case SL_GLOBAL_OL: t.base = SL_TYPE_COLOR; break;
 	case SL_GLOBAL_S: case SL_GLOBAL_T: case SL_GLOBAL_U: case SL_GLOBAL_V:
@@ -1014,6 +1015,8 @@ static void lower_stmt(struct lower *l, struct sl_ast *st)
 		for (int i = 0; i < n && i < 2; i++)
 			args[i] = lower_expr(l, st->list[i]);
 		global(l, SL_GLOBAL_L);
+		if (n == 0)
+			global(l, SL_GLOBAL_NS); /* L = -Ns */
 		lower_block_op(l, st, SL_OP_SOLAR, SL_OP_SOLAR_END, args, n, 0);
 		break;
 	}

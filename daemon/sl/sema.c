@@ -234,6 +234,12 @@ static struct sl_type check_ident(struct sema *s, struct sl_ast *e)
 	e->sym = sym;
 	if (sym->kind == SL_SYM_GLOBAL) {
 		int g = sym->global;
+		/* PRMan's Ns: the normal the lights are evaluated with, which only a
+		 * light has; a surface has N. */
+		if (g == SL_GLOBAL_NS && s->kind != SL_SHADER_LIGHT) {
+			sl_error(s->ctx, e->loc, "'Ns' is defined only in light shaders");
+			return T_VOID;
+		}
 		if ((g == SL_GLOBAL_L || g == SL_GLOBAL_CL || g == SL_GLOBAL_OL) &&
 		    s->kind != SL_SHADER_LIGHT && !s->illuminance && !s->func)
 			sl_warning(s->ctx, e->loc,
@@ -1271,9 +1277,7 @@ static void check_stmt(struct sema *s, struct sl_ast *st)
 		if (st->kind == SL_AST_ILLUMINATE) {
 			check_light_args(s, st, 0);
 		} else if (st->nlist == 0) {
-			sl_error(s->ctx, st->loc,
-				 "solar() without arguments (light from all directions) is not "
-				 "supported; give an axis and an angle");
+			/* Light from every direction: L is -Ns (see exec.c, op_emit). */
 		} else if (st->nlist == 2) {
 			check_convert(s, st->list[0], T_VECTOR, "axis");
 			check_convert(s, st->list[1], T_FLOAT, "angle");

@@ -702,6 +702,132 @@ bool sl_ir_arg_is_output(const struct sl_insn *in, int k)
 	return arg_is_output(in, k);
 }
 
+/* Arithmetic that a value computed from constants alone may be made of. */
+static bool pure_op(int op)
+{
+	return (op >= SL_OP_MOV && op <= SL_OP_OR) || op == SL_OP_TRIPLE || op == SL_OP_MATRIX ||
+	       op == SL_OP_COMP || op == SL_OP_SELECT;
+}
+
+/*
+ * konst[r]: temporary or local @r holds one value, computed from constants
+ * alone, wherever it is read: every write is pure arithmetic of constants
+ * and such registers, outside any block but inlined functions that have not
+ * returned yet (so it always runs). Inlined functions' constant arguments
+ * and locals such as `float a = 0.5; ... a *= gain;` are of this kind.
+ */
+static uint8_t *constant_registers(const struct sl_program *p, const struct sl_spec *s)
+{
+	uint8_t *konst = rl_xcalloc(p->nregs + 1, 1);
+	uint8_t *bad = rl_xcalloc(p->nregs + 1, 1);
+	for (uint32_t r = 0; r < p->nregs; r++) {
+		const struct sl_reg *rg = &p->regs[r];
+		konst[r] = (rg->kind == SL_REG_TEMP || rg->kind == SL_REG_LOCAL) && !rg->arraylen &&
+			   rg->type != SL_TYPE_STRING && !s->reg_dynamic[r];
+	}
+	/* Writes that are not at function level or not pure disqualify at once.
+	 * The open blocks: 1 an inlined function, 2 any other; after a return,
+	 * the rest of its function may not run (taint: that function's depth). */
+	uint8_t *open = rl_xcalloc(p->ncode + 1, 1);
+	uint32_t nopen = 0, blocks = 0, taint = UINT32_MAX;
+	for (uint32_t i = 0; i < p->ncode; i++) {
+		const struct sl_insn *in = &p->code[i];
+		if (is_opener(in->op)) {
+			open[nopen++] = in->op == SL_OP_FUNC ? 1 : 2;
+			blocks += in->op != SL_OP_FUNC;
+		} else if (is_closer(in->op) && nopen) {
+			blocks -= open[--nopen] == 2;
+			if (nopen <= taint)
+				taint = UINT32_MAX;
+		} else if (in->op == SL_OP_RETURN) {
+			uint32_t f = nopen;
+			while (f > 0 && open[f - 1] != 1)
+				f--;
+			if (f > 0 && f - 1 < taint)
+				taint = f - 1;
+		}
+		if (is_control(in->op))
+			continue;
+		bool ok = i >= p->body_begin && blocks == 0 && taint == UINT32_MAX &&
+			  pure_op(in->op);
+		for (int k = 0; k < in->nargs; k++)
+			if (arg_is_output(in, k)) {
+				bad[in->args[k]] = 1;
+				ok = false;
+			}
+		if (in->dst >= 0 && !ok)
+			bad[in->dst] = 1;
+	}
+	free(open);
+	for (uint32_t r = 0; r < p->nregs; r++)
+		if (bad[r])
+			konst[r] = 0;
+	/* Then the arguments: a write reading a non-constant disqualifies. */
+	bool changed = true;
+	while (changed) {
+		changed = false;
+		for (uint32_t i = p->body_begin; i < p->ncode; i++) {
+			const struct sl_insn *in = &p->code[i];
+			if (in->dst < 0 || !konst[in->dst] || is_control(in->op))
+				continue;
+			for (int k = 0; k < in->nargs; k++) {
+				int32_t a = in->args[k];
+				if (p->regs[a].kind != SL_REG_CONST && !konst[a]) {
+					konst[in->dst] = 0;
+					changed = true;
+					break;
+				}
+			}
+		}
+	}
+	free(bad);
+	return konst;
+}
+
+/*
+ * The dynamic part computes the constants it reads again instead of caching
+ * them: their writes join the slice (they stay in the caching program too).
+ * A production shader's inlined helpers read many such values, each of
+ * which would otherwise be a float per sample in the cache.
+ */
+static void recompute_constants(const struct sl_program *p, struct sl_spec *s, uint8_t *konst)
+{
+	/* The writes of each register, as lists through next[]; a worklist of
+	 * the instructions newly kept. */
+	int32_t *head = rl_xmalloc((p->nregs + 1) * sizeof(int32_t));
+	int32_t *next = rl_xmalloc((p->ncode + 1) * sizeof(int32_t));
+	uint32_t *work = rl_xmalloc((p->ncode + 1) * sizeof(uint32_t));
+	for (uint32_t r = 0; r <= p->nregs; r++)
+		head[r] = -1;
+	uint32_t nwork = 0;
+	for (uint32_t i = p->ncode; i-- > p->body_begin;) {
+		int32_t d = p->code[i].dst;
+		if (d >= 0 && konst[d]) {
+			next[i] = head[d];
+			head[d] = (int32_t)i;
+		}
+		if (s->keep[i])
+			work[nwork++] = i;
+	}
+	while (nwork) {
+		const struct sl_insn *in = &p->code[work[--nwork]];
+		for (int k = 0; k < in->nargs; k++) {
+			int32_t a = in->args[k];
+			if (konst[a] != 1)
+				continue;
+			konst[a] = 2; /* recomputed */
+			for (int32_t j = head[a]; j >= 0; j = next[j])
+				if (!s->keep[j]) {
+					s->keep[j] = 1;
+					work[nwork++] = (uint32_t)j;
+				}
+		}
+	}
+	free(head);
+	free(next);
+	free(work);
+}
+
 static void add_unique(int32_t **v, uint32_t *n, int32_t r)
 {
 	for (uint32_t i = 0; i < *n; i++)
@@ -809,6 +935,9 @@ struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *cons
 	}
 	/* A kept break/continue/return needs its blocks. */
 	keep_structure(prog, s->keep, NULL);
+	uint8_t *konst = constant_registers(prog, s);
+	recompute_constants(prog, s, konst);
+	keep_structure(prog, s->keep, NULL);
 
 	s->cached = rl_xcalloc(prog->nregs + 1, sizeof(int32_t));
 	s->outputs = rl_xcalloc(prog->nregs + 1, sizeof(int32_t));
@@ -820,7 +949,8 @@ struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *cons
 		for (int k = 0; k < in->nargs; k++) {
 			int32_t r = in->args[k];
 			const struct sl_reg *reg = &prog->regs[r];
-			if (arg_is_output(in, k) || s->reg_dynamic[r] || reg->kind == SL_REG_CONST)
+			if (arg_is_output(in, k) || s->reg_dynamic[r] || reg->kind == SL_REG_CONST ||
+			    konst[r])
 				continue;
 			/* uniform parameters the body never writes stay uniforms */
 			if (reg->kind == SL_REG_PARAM && !reg->varying && st.writes[r] <= 1 &&
@@ -853,20 +983,25 @@ struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *cons
 			}
 		}
 	}
-	/* The light host gives the lights the surface's E and time (when both
+	/* The light host gives the lights the surface's E, time and dtime (when both
 	 * shaders have them): where the kept code runs lights, they are inputs. */
-	bool runs_lights = false;
+	bool runs_lights = false, axisless = false;
 	for (uint32_t i = 0; i < prog->ncode; i++) {
 		const struct sl_insn *in = &prog->code[i];
+		/* An illuminance without an axis gives the lights the surface's N as Ns. */
+		if (s->keep[i] && in->op == SL_OP_ILLUMINANCE && in->nargs == (uint32_t)in->imm + 1)
+			axisless = true;
 		if (s->keep[i] && (in->op == SL_OP_ILLUMINANCE ||
 				   (in->op == SL_OP_CALL && in->bi >= 0 &&
 				    (sl_builtins[in->bi].flags & SL_BIF_LIGHTS))))
 			runs_lights = true;
 	}
-	static const enum sl_global shared_globals[] = { SL_GLOBAL_E, SL_GLOBAL_TIME };
-	for (size_t g = 0; g < 2 && runs_lights; g++) {
+	static const enum sl_global shared_globals[] = {
+		SL_GLOBAL_E, SL_GLOBAL_TIME, SL_GLOBAL_DTIME, SL_GLOBAL_N,
+	};
+	for (size_t g = 0; g < 4 && runs_lights; g++) {
 		int32_t r = prog->global_reg[shared_globals[g]];
-		if (r >= 0 && !s->reg_dynamic[r])
+		if (r >= 0 && !s->reg_dynamic[r] && (g < 3 || axisless))
 			add_unique(&s->cached, &s->ncached, r);
 	}
 	/* Outputs: Ci and Oi always (static ones pass their cached value through),
@@ -905,6 +1040,7 @@ struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *cons
 	s->dynamic = make_dynamic(prog, s);
 	mark_derivatives(s, flags);
 
+	free(konst);
 	free(reg_live);
 	free(st.writes);
 	free(st.block_dyn);

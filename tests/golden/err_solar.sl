@@ -1,5 +1,5 @@
-// expect-error: 4:2: solar() without arguments
+// expect-error: 4:7: 'solar' does not take 1 arguments
 light err_solar()
 {
-	solar() { Cl = 1; }
+	solar(vector(0, 0, 1)) { Cl = 1; }
 }

@@ -95,10 +95,11 @@ static void test_diagnostics(void)
 	expect_error("gather.sl",
 		     "surface s() {\n  gather(\"illuminance\", P, N, 1, 4) { Ci = 1; }\n}\n", 2, 3,
 		     "gather");
-	expect_error("solar.sl", "light l() {\n  solar() { Cl = 1; }\n}\n", 2, 3, "solar");
 	/* A uniform local that varies is promoted; a uniform parameter is not. */
 	expect_error("uniform.sl", "surface s(float x = 0) {\n  x = s;\n  Ci = x;\n}\n",
 		     2, 0 + 5, "uniform parameter 'x' is assigned a varying value");
+	expect_error("ns.sl", "surface s() {\n  Ci = color(xcomp(Ns), 0, 0);\n}\n", 2, 20,
+		     "'Ns' is defined only in light shaders");
 	expect_error("empty.sl", "", 1, 1, NULL);
 	expect_error("two.sl", "surface a() { }\nsurface b() { }\n", 2, 9, "second shader");
 	expect_error("noparam.sl", "surface s(float Kd) { Ci = Kd; }\n", 1, 17, "default");

@@ -1419,7 +1419,7 @@ static void test_invalid(void)
 	prog = pb_finish(&b);
 	CHECK(sl_exec_create(prog, 4) == NULL);
 	pb_free(&b);
-	/* solar without arguments is refused at run time */
+	/* solar without arguments (and without L or Ns) lights every point */
 	pb_init(&b, SL_SHADER_LIGHT);
 	body(&b);
 	uint32_t so = emit(&b, SL_OP_SOLAR, -1, 0);
@@ -1428,7 +1428,10 @@ static void test_invalid(void)
 	struct sl_exec *x = sl_exec_create(prog, 4);
 	CHECK(x != NULL);
 	if (x) {
-		CHECK(!sl_exec_run(x, NULL));
+		CHECK(sl_exec_run(x, NULL));
+		CHECK(!sl_exec_is_ambient(x));
+		for (uint32_t i = 0; i < 4; i++)
+			CHECK(sl_exec_lit_mask(x)[i] == 1);
 		sl_exec_destroy(x);
 	}
 	pb_free(&b);
@@ -1710,12 +1713,13 @@ static int fl_nlights(void *user)
 }
 
 static bool fl_light(void *user, int i, struct sl_exec *surface, uint32_t n, uint32_t stride,
-		     const uint8_t *mask, const float *Ps, float *L, float *Cl, float *Ol,
-		     uint8_t *lit, bool *ambient)
+		     const uint8_t *mask, const float *Ps, const float *Ns, float *L, float *Cl,
+		     float *Ol, uint8_t *lit, bool *ambient)
 {
 	struct fake_lights *fl = user;
 	(void)surface;
 	(void)Ps;
+	(void)Ns;
 	uint32_t cnt = 0;
 	for (uint32_t k = 0; k < n; k++) {
 		if (!mask[k])
@@ -1851,6 +1855,174 @@ static void test_light_recursion(void)
 		sl_exec_destroy(x);
 	}
 	pb_free(&b);
+}
+
+/*
+ * solar() without arguments and Ns: the light shines along the normal the
+ * surface evaluates it with (L = -Ns in the light, +Ns in the surface), so
+ * N.L is 1, and no illuminance cone about that normal culls it, however
+ * narrow. Closed forms: L, Cl and diffuse() equal the normal given.
+ */
+static const char allsky_src[] =
+	"light allsky(float k = 2) {\n"
+	"	solar() { Cl = k * color(xcomp(Ns), ycomp(Ns), zcomp(Ns)); }\n"
+	"}\n";
+/* A local light that reports Ns through Cl. */
+static const char nsprobe_src[] =
+	"light nsprobe(point from = point(0, 0, 10)) {\n"
+	"	illuminate(from) { Cl = color(xcomp(Ns), ycomp(Ns), zcomp(Ns)); }\n"
+	"}\n";
+static const char solarsurf_src[] =
+	"surface solarsurf(output varying vector Ls = 0; output varying color Ca = 0;\n"
+	"	output varying float cnt = 0; output varying vector Lc = 0;\n"
+	"	output varying color Cn = 0; output varying color Cd = 0;\n"
+	"	output varying color Cs2 = 0)\n"
+	"{\n"
+	"	normal Nf = normalize(N);\n"
+	"	illuminance(P, Nf, 0.01) { Ls += L; Ca += Cl; cnt += 1; }\n"
+	"	illuminance(P) { Lc += L; Cn += Cl; }\n"
+	"	Cd = diffuse(Nf);\n"
+	"	Cs2 = specular(Nf, -normalize(I), 0.2);\n"
+	"	Ci = 0;\n"
+	"}\n";
+
+static int32_t out_reg(const struct sl_program *p, const char *name)
+{
+	int k = sl_program_find_param(p, name);
+	CHECK(k >= 0);
+	return k >= 0 ? p->params[k].reg : -1;
+}
+
+static void test_solar_all(void)
+{
+	enum { NP = 4 };
+	struct sl_program *sp = sl_compile_string("solarsurf.sl", solarsurf_src,
+						  strlen(solarsurf_src), NULL);
+	struct sl_program *lp = sl_compile_string("allsky.sl", allsky_src, strlen(allsky_src), NULL);
+	struct sl_program *np = sl_compile_string("nsprobe.sl", nsprobe_src, strlen(nsprobe_src),
+						  NULL);
+	CHECK(sp && lp && np);
+	struct sl_exec *sx = sp ? sl_exec_create(sp, NP) : NULL;
+	struct sl_exec *lights[2] = { lp ? sl_exec_create(lp, NP) : NULL,
+				      np ? sl_exec_create(np, NP) : NULL };
+	if (!sx || !lights[0] || !lights[1])
+		goto out;
+	/* Normals of several lengths and directions, facing away from the eye too. */
+	static const float N[NP][3] = { { 0, 0, 1 }, { 0.3f, -2, 0.5f }, { -1, 1, -1 },
+					{ 0, 3, 0 } };
+	for (uint32_t i = 0; i < NP; i++) {
+		set_global3(sx, SL_GLOBAL_P, i, (float)i - 1.5f, 0.5f, 2);
+		set_global3(sx, SL_GLOBAL_I, i, (float)i - 1.5f, 0.5f, 2);
+		set_global3(sx, SL_GLOBAL_N, i, N[i][0], N[i][1], N[i][2]);
+	}
+	struct sl_lighthost lh;
+	sl_lighthost_init(&lh, lights, 1);
+	CHECK(sl_exec_run(sx, &lh.host));
+	int32_t Ls = out_reg(sp, "Ls"), Ca = out_reg(sp, "Ca"), cnt = out_reg(sp, "cnt"),
+		Lc = out_reg(sp, "Lc"), Cn = out_reg(sp, "Cn"), Cd = out_reg(sp, "Cd"),
+		Cs2 = out_reg(sp, "Cs2");
+	for (uint32_t i = 0; i < NP; i++) {
+		float len = sqrtf(N[i][0] * N[i][0] + N[i][1] * N[i][1] + N[i][2] * N[i][2]);
+		/* Never culled by a cone of 0.01 rad about Nf. */
+		CHECK_NEAR(R(sx, cnt, 0, i), 1, 0);
+		for (int c = 0; c < 3; c++) {
+			float nf = N[i][c] / len;
+			CHECK_NEAR(R(sx, Ls, c, i), nf, 1e-6);
+			CHECK_NEAR(R(sx, Ca, c, i), 2 * nf, 1e-6);
+			/* Without an axis the lights get the surface's N, as it is. */
+			CHECK_NEAR(R(sx, Lc, c, i), N[i][c], 1e-6);
+			CHECK_NEAR(R(sx, Cn, c, i), 2 * N[i][c], 1e-6);
+			/* diffuse(Nf): N.L = 1 for a light along Nf. */
+			CHECK_NEAR(R(sx, Cd, c, i), 2 * nf, 1e-6);
+		}
+		/* specular(): L is the normal, H = normalize(Nf + V): PRMan's (N.H)^(8/r). */
+		float V[3] = { -((float)i - 1.5f), -0.5f, -2 }, H[3], vl = 0, hl = 0, nh = 0;
+		for (int c = 0; c < 3; c++)
+			vl += V[c] * V[c];
+		for (int c = 0; c < 3; c++) {
+			H[c] = N[i][c] / len + V[c] / sqrtf(vl);
+			hl += H[c] * H[c];
+		}
+		for (int c = 0; c < 3; c++)
+			nh += N[i][c] / len * H[c] / sqrtf(hl);
+		float spec = powf(fmaxf(0.0f, nh), 8 / 0.2f);
+		for (int c = 0; c < 3; c++)
+			CHECK_NEAR(R(sx, Cs2, c, i), 2 * N[i][c] / len * spec, 1e-5);
+	}
+	/* Ns in a local light: the normal of each call, as a light from (0, 0, 10). */
+	sl_lighthost_init(&lh, lights + 1, 1);
+	CHECK(sl_exec_run(sx, &lh.host));
+	for (uint32_t i = 0; i < NP; i++) {
+		float len = sqrtf(N[i][0] * N[i][0] + N[i][1] * N[i][1] + N[i][2] * N[i][2]);
+		float Lv[3] = { 1.5f - (float)i, -0.5f, 8 }, ll = 0, cosl = 0;
+		for (int c = 0; c < 3; c++)
+			ll += Lv[c] * Lv[c];
+		for (int c = 0; c < 3; c++)
+			cosl += N[i][c] / len * Lv[c] / sqrtf(ll);
+		for (int c = 0; c < 3; c++) {
+			CHECK_NEAR(R(sx, Cn, c, i), N[i][c], 1e-6);
+			CHECK_NEAR(R(sx, Cd, c, i), cosl >= 0 ? N[i][c] / len * cosl : 0, 1e-6);
+		}
+	}
+	/* A light's own P is the origin of its shader space; ncomps is 3. */
+	static const char geo_src[] =
+		"light geo() { solar() { Cl = color(xcomp(P), ycomp(P), zcomp(P)) + 10 * ncomps; } }\n";
+	struct sl_program *gp = sl_compile_string("geo.sl", geo_src, strlen(geo_src), NULL);
+	struct sl_exec *gx = gp ? sl_exec_create(gp, NP) : NULL;
+	CHECK(gx != NULL);
+	if (gx) {
+		static const float shader_mat[1][16] = { { 0, 1, 0, 0, -1, 0, 0, 0, 0, 0, 1, 0,
+							   1, 2, 3, 1 } };
+		sl_lighthost_init(&lh, &gx, 1);
+		lh.light_shader_mats = shader_mat;
+		CHECK(sl_exec_run(sx, &lh.host));
+		for (uint32_t i = 0; i < NP; i++)
+			for (int c = 0; c < 3; c++)
+				CHECK_NEAR(R(sx, Cn, c, i), 31 + c, 1e-6);
+	}
+	sl_exec_destroy(gx);
+	sl_program_destroy(gp);
+	/* dtime (and time) come from the surface, when both shaders have them. */
+	static const char dtl_src[] = "light dtl() { solar() { Cl = color(dtime, time, 0); } }\n";
+	static const char dts_src[] =
+		"surface dts(output varying color c = 0) {\n"
+		"	float d = dtime + time;\n"
+		"	illuminance(P) c += Cl;\n"
+		"	Ci = d;\n"
+		"}\n";
+	struct sl_program *dlp = sl_compile_string("dtl.sl", dtl_src, strlen(dtl_src), NULL);
+	struct sl_program *dsp = sl_compile_string("dts.sl", dts_src, strlen(dts_src), NULL);
+	struct sl_exec *dlx = dlp ? sl_exec_create(dlp, NP) : NULL;
+	struct sl_exec *dsx = dsp ? sl_exec_create(dsp, NP) : NULL;
+	CHECK(dlx && dsx);
+	if (dlx && dsx) {
+		bool v;
+		sl_exec_global(dsx, SL_GLOBAL_DTIME, &v)[0] = 0.25f;
+		sl_exec_global(dsx, SL_GLOBAL_TIME, &v)[0] = 0.5f;
+		sl_lighthost_init(&lh, &dlx, 1);
+		CHECK(sl_exec_run(dsx, &lh.host));
+		int32_t c = out_reg(dsp, "c");
+		for (uint32_t i = 0; i < NP; i++) {
+			CHECK_NEAR(R(dsx, c, 0, i), 0.25f, 0);
+			CHECK_NEAR(R(dsx, c, 1, i), 0.5f, 0);
+		}
+	}
+	sl_exec_destroy(dlx);
+	sl_exec_destroy(dsx);
+	sl_program_destroy(dlp);
+	sl_program_destroy(dsp);
+	/* Ns outside a light shader is an error. */
+	static const char bad_src[] = "surface bad() { Ci = color(xcomp(Ns), 0, 0); }\n";
+	struct sl_program *bad = sl_compile_string("bad.sl", bad_src, strlen(bad_src), NULL);
+	CHECK(bad == NULL);
+	sl_program_destroy(bad);
+out:
+	sl_exec_destroy(sx);
+	sl_exec_destroy(lights[0]);
+	sl_exec_destroy(lights[1]);
+	sl_program_destroy(sp);
+	sl_program_destroy(lp);
+	sl_program_destroy(np);
 }
 
 /* ------------------------------------------------------------------------ */
@@ -2568,6 +2740,7 @@ int main(void)
 	RUN(test_illuminance);
 	RUN(test_illuminance_flow);
 	RUN(test_light_recursion);
+	RUN(test_solar_all);
 	RUN(test_loop_guard);
 	RUN(test_stencil_deriv);
 	RUN(test_stencil_errors);

@@ -639,6 +639,7 @@ static const char *const surfaces[] = {
 };
 static const char *const lightnames[] = {
 	"ambientlight", "distantlight", "pointlight", "spotlight", "shadowspot", "uberlight",
+	"envlight",
 };
 #define NSURF (sizeof(surfaces) / sizeof(surfaces[0]))
 #define NLIGHT (sizeof(lightnames) / sizeof(lightnames[0]))
@@ -1476,6 +1477,69 @@ static void test_flat_expression(void)
 	rl_strbuf_finish(&b);
 }
 
+/*
+ * solar() without arguments and Ns (test_exec.c checks the closed forms on
+ * the interpreter): the GPU gives each light the same Ns for every way a
+ * surface runs its lights: an illuminance with an axis, one without (the
+ * surface's N), diffuse(), specular(), phong() (the normal given) and
+ * ambient() (zero); and a light's own P (its shader space's origin) and ncomps.
+ */
+static const char allsky_src[] =
+	"light allsky(float k = 2) {\n"
+	"	solar() { Cl = k * color(xcomp(Ns), ycomp(Ns), zcomp(Ns)); }\n"
+	"}\n";
+static const char nsprobe_src[] =
+	"light nsprobe(point from = point(0, 0, 10)) {\n"
+	"	illuminate(from) { Cl = color(xcomp(Ns), ycomp(Ns), zcomp(Ns)); }\n"
+	"}\n";
+static const char geo_src[] =
+	"light geo() { solar() { Cl = color(xcomp(P), ycomp(P), zcomp(P)) * 0.1 + ncomps; } }\n";
+static const char ambns_src[] =
+	"light ambns() { Cl = color(xcomp(Ns), ycomp(Ns), zcomp(Ns)) + 0.25; }\n";
+static const char solarsurf_src[] =
+	"surface solarsurf(output varying color o1 = 0, o2 = 0, o3 = 0, o4 = 0, o5 = 0, o6 = 0,\n"
+	"	o7 = 0)\n"
+	"{\n"
+	"	normal Nf = normalize(N);\n"
+	"	illuminance(P, Nf, 0.01) { o1 += color(L); o2 += Cl; o3 += 1; }\n"
+	"	illuminance(P) { o4 += color(L) + Cl; }\n"
+	"	o5 = diffuse(Nf);\n"
+	"	o6 = specular(Nf, -normalize(I), 0.2) + phong(Nf, -normalize(I), 10);\n"
+	"	o7 = ambient();\n"
+	"	Ci = o1;\n"
+	"}\n";
+
+static void test_solar_all(void)
+{
+	struct sl_program *sp = compile("solarsurf.sl", solarsurf_src),
+			  *a = compile("allsky.sl", allsky_src),
+			  *b = compile("nsprobe.sl", nsprobe_src),
+			  *amb = compile("ambns.sl", ambns_src), *geo = compile("geo.sl", geo_src);
+	CHECK(sp && a && b && amb && geo);
+	if (sp && a && b && amb && geo) {
+		struct xc c;
+		xc_init(&c, "solar() without arguments, Ns", sp, NPTS);
+		xc_add(&c, a);
+		xc_setf(&c, 1, "k", 1.5f);
+		xc_add(&c, b);
+		xc_add(&c, amb);
+		xc_add(&c, geo);
+		double e = xc_check(&c, o7, 7, TOL);
+		/* Every point is lit by allsky through the narrowest cone. */
+		const struct sl_program *p = c.prog[0];
+		int32_t o3 = p->params[sl_program_find_param(p, "o3")].reg;
+		for (uint32_t i = 0; i < NPTS; i++)
+			CHECK(sl_exec_reg(c.x[0], o3)[i] >= 1);
+		printf("solar(), Ns: GPU within %.3g of the interpreter\n", e);
+		xc_free(&c);
+	}
+	sl_program_destroy(sp);
+	sl_program_destroy(a);
+	sl_program_destroy(b);
+	sl_program_destroy(amb);
+	sl_program_destroy(geo);
+}
+
 /* Light @j of the per-light test, program @i of @c: its parameters. */
 static void pass_light(struct xc *c, int i, int j)
 {
@@ -1701,16 +1765,9 @@ static void test_patched_programs(void)
 		sl_program_destroy(lp);
 		return;
 	}
-	/* solar() with no arguments: light from everywhere. */
 	struct sl_program l2 = *lp;
 	struct sl_insn *code = malloc(lp->ncode * sizeof(*code));
-	memcpy(code, lp->code, lp->ncode * sizeof(*code));
 	l2.code = code;
-	for (uint32_t i = lp->body_begin; i < lp->ncode; i++)
-		if (code[i].op == SL_OP_SOLAR)
-			code[i].nargs = 0;
-	expect_emit_error(sp, &l2, 1, "sun.sl:1:15: error: solar without an axis and angle is "
-			  "not supported");
 	/* An instruction that writes a constant. */
 	memcpy(code, lp->code, lp->ncode * sizeof(*code));
 	int32_t k = -1;
@@ -2869,6 +2926,7 @@ int main(void)
 	RUN(test_promoted_uniforms);
 	RUN(test_flat_expression);
 	RUN(test_per_light);
+	RUN(test_solar_all);
 	RUN(test_other_shaders);
 	RUN(test_imagers);
 	RUN(test_library_lights);

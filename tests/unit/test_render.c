@@ -1032,6 +1032,78 @@ static void write_flat(const char *name, uint32_t w, const float rgb[3])
 }
 
 /*
+ * shaders/envlight.sl, the closed form: a Lambertian (matte) plane under an
+ * environment of constant radiance L and nothing else receives the
+ * irradiance PI L about its normal, so every pixel is Cs Kd PI L, whichever
+ * way the plane faces (towards the eye, tilted, seen from behind, with world
+ * space turned from camera space). The environment is a lat-long map made by
+ * MakeLatLongEnvironment from a constant picture, and the empty name with
+ * lightcolor L. Tolerance 0.5% of the value (the quadrature's weights sum
+ * to PI, so only float rounding is left).
+ */
+static void test_envlight_render(void)
+{
+	static const float L[3] = { 0.6f, 0.3f, 0.15f }, Cs[3] = { 0.5f, 0.7f, 0.9f };
+	const float Kd = 0.8f;
+	write_flat("sky.exr", 16, L);
+	static const char *const turns[] = { "", "Rotate 60 1 0 0", "Rotate 70 0 1 0 Rotate 30 1 0 0",
+					     "Rotate 180 0 1 0", "Rotate -70 1 1 0" };
+	double worst = 0;
+	int checked = 0;
+	for (int m = 0; m < 2; m++)
+		for (size_t k = 0; k < sizeof(turns) / sizeof(turns[0]); k++) {
+			char rib[2000];
+			snprintf(rib, sizeof(rib),
+				 "MakeLatLongEnvironment \"sky.exr\" \"sky.env\" \"box\" 1 1\n"
+				 "Format 16 16 1\n"
+				 "PixelSamples 2 2\n"
+				 "Projection \"orthographic\"\n"
+				 "ScreenWindow -1 1 -1 1\n"
+				 "Display \"envl.exr\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+				 "Rotate 30 0 1 0\n"
+				 "WorldBegin\n"
+				 "  LightSource \"envlight\" 1 \"string envname\" \"%s\" "
+				 "\"color lightcolor\" [%g %g %g] \"float samples\" 36\n"
+				 "  Color [%g %g %g]\n"
+				 "  Surface \"matte\" \"Kd\" %g\n"
+				 "  TransformBegin\n"
+				 "    Rotate -30 0 1 0\n"
+				 "    Translate 0 0 10\n"
+				 "    %s\n"
+				 "    Polygon \"P\" [-8 -8 0  8 -8 0  8 8 0  -8 8 0]\n"
+				 "  TransformEnd\n"
+				 "WorldEnd\n",
+				 m ? "" : "sky.env", m ? L[0] : 1, m ? L[1] : 1, m ? L[2] : 1, Cs[0],
+				 Cs[1], Cs[2], Kd, turns[k]);
+			struct reyes_image im = { 0 };
+			CHECK(render(rib, "envl.exr", &im));
+			if (!im.data)
+				continue;
+			for (int c = 0; c < 3; c++) {
+				int ch = channel(&im, (const char *[]){ "R", "G", "B" }[c]);
+				CHECK(ch >= 0);
+				double want = Cs[c] * Kd * 3.14159265358979 * L[c];
+				for (uint32_t y = 0; ch >= 0 && y < im.height; y++)
+					for (uint32_t x = 0; x < im.width; x++) {
+						double e = fabs(px(&im, ch, x, y) - want) / want;
+						worst = fmax(worst, e);
+						checked++;
+						if (e > 0.005)
+							fprintf(stderr, "%s, %s: pixel (%u, %u) %c %.6f, "
+								"expected %.6f\n", m ? "\"\"" : "map",
+								turns[k], x, y, "RGB"[c],
+								px(&im, ch, x, y), want);
+					}
+			}
+			reyes_image_finish(&im);
+		}
+	printf("envlight on a matte plane, 5 orientations, a map and the empty name: %d values "
+	       "within %.2g of Cs Kd PI L (tolerance 0.5%%)\n", checked, worst);
+	CHECK(checked == 2 * 5 * 3 * 16 * 16);
+	CHECK(worst <= 0.005);
+}
+
+/*
  * MakeCubeFaceEnvironment and MakeLatLongEnvironment in a RIB, looked up by
  * environment() in a render: a unit sphere seen orthographically from -z
  * (world and camera spaces the same) with Ci = environment(map, N in
@@ -1173,6 +1245,7 @@ int main(void)
 	RUN(test_height_field);
 	RUN(test_periodic_patch_mesh);
 	RUN(test_environment_render);
+	RUN(test_envlight_render);
 	scene_dir_remove();
 	return test_finish();
 }

@@ -61,12 +61,13 @@ static int host_nlights(void *user)
 }
 
 static bool host_light(void *user, int i, struct sl_exec *surface, uint32_t n, uint32_t stride,
-		       const uint8_t *mask, const float *Ps, float *L, float *Cl, float *Ol,
-		       uint8_t *lit, bool *ambient)
+		       const uint8_t *mask, const float *Ps, const float *Ns, float *L, float *Cl,
+		       float *Ol, uint8_t *lit, bool *ambient)
 {
 	const struct test_light *l = &((struct test_host *)user)->lights[i];
 	(void)surface;
 	(void)Ps;
+	(void)Ns;
 	for (uint32_t k = 0; k < n; k++) {
 		if (!mask[k])
 			continue;

@@ -664,7 +664,7 @@ static void light_set_free(struct light_set *ls)
 /* Every light of shaders/, several at once (two point lights), random parameters. */
 static const char *const lightnames[] = {
 	"ambientlight", "distantlight", "pointlight", "spotlight", "shadowspot", "uberlight",
-	"pointlight",
+	"pointlight", "envlight",
 };
 #define NLIGHT (sizeof(lightnames) / sizeof(lightnames[0]))
 

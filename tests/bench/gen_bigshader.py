@@ -1,0 +1,204 @@
+#!/usr/bin/env python3
+"""Write a production-sized RSL surface shader to stdout.
+
+lightspeed-2007's production shaders are ~20,000 IR instructions after
+inlining. This makes one of that size the way such shaders are built: many
+texture-free pattern layers (fractal, ridged and turbulent noise through
+helper functions inlined at every call), each blending a colour, a roughness
+and a specular weight into the material with its own mask, then several
+illuminance loops with several lobes (Lambert, wrap, PRMan specular, a
+Blinn-like sheen, rim), and long arithmetic between them. No expression is
+a flat chain of hundreds of operands: sums grow statement by statement.
+
+    gen_bigshader.py [--layers N] [--seed S] [--name NAME]
+
+The shader's parameters: Ka, Kd, Ks, roughness, wrap, rimwidth, rimcolor,
+sheen, layerscale (every layer's frequency scales with it: mark it dynamic
+to move the whole pattern stack into the dynamic part) and layermix.
+"""
+
+import argparse
+import random
+
+
+def fmt(x):
+    return "%.4g" % x
+
+
+def helpers():
+    return """\
+/* Signed noise in [-1, 1]. */
+float snoise(point p) { return 2 * noise(p) - 1; }
+
+/* Four octaves of fractal noise, each rotated and shifted off the last. */
+float fbm(point p; float gain; float lacunarity)
+{
+	float s = 0, a = 0.5;
+	point q = p;
+	s += a * snoise(q);
+	q = point(0.8 * xcomp(q) - 0.6 * ycomp(q), 0.6 * xcomp(q) + 0.8 * ycomp(q), zcomp(q))
+		* lacunarity + point(0.13, 0.27, 0.41);
+	a *= gain;
+	s += a * snoise(q);
+	q = point(0.8 * xcomp(q) + 0.6 * zcomp(q), ycomp(q), -0.6 * xcomp(q) + 0.8 * zcomp(q))
+		* lacunarity + point(0.37, 0.11, 0.23);
+	a *= gain;
+	s += a * snoise(q);
+	q = point(xcomp(q), 0.8 * ycomp(q) - 0.6 * zcomp(q), 0.6 * ycomp(q) + 0.8 * zcomp(q))
+		* lacunarity + point(0.19, 0.43, 0.07);
+	a *= gain;
+	s += a * snoise(q);
+	return s;
+}
+
+/* Three octaves of ridged noise. */
+float ridged(point p; float sharp)
+{
+	float s = 0, a = 0.6, w = 1;
+	point q = p;
+	float r = 1 - abs(snoise(q));
+	r = pow(max(r, 0), sharp);
+	s += a * r * w;
+	w = clamp(r * 1.5, 0, 1);
+	q = q * 2.1 + point(0.3, 0.1, 0.7);
+	a *= 0.5;
+	r = 1 - abs(snoise(q));
+	r = pow(max(r, 0), sharp);
+	s += a * r * w;
+	w = clamp(r * 1.5, 0, 1);
+	q = q * 2.1 + point(0.5, 0.9, 0.2);
+	a *= 0.5;
+	r = 1 - abs(snoise(q));
+	r = pow(max(r, 0), sharp);
+	s += a * r * w;
+	return s;
+}
+
+/* Three octaves of turbulence. */
+float turb(point p)
+{
+	float s = abs(snoise(p));
+	s += 0.5 * abs(snoise(p * 2.02 + point(0.7, 0.2, 0.5)));
+	s += 0.25 * abs(snoise(p * 4.05 + point(0.1, 0.8, 0.3)));
+	return s / 1.75;
+}
+
+/* A soft band of a pattern value. */
+float band(float x; float lo; float hi; float soft)
+{
+	return smoothstep(lo - soft, lo + soft, x) * (1 - smoothstep(hi - soft, hi + soft, x));
+}
+
+/* A colour ramp of three keys. */
+color ramp3(float x; color a; color b; color c)
+{
+	color r = mix(a, b, smoothstep(0, 0.5, x));
+	return mix(r, c, smoothstep(0.5, 1, x));
+}
+"""
+
+
+def layer(rng, k):
+    """One pattern layer: its mask, colour, roughness and specular weight."""
+    f = rng.uniform(0.6, 6.0)
+    off = [rng.uniform(-5, 5) for _ in range(3)]
+    gain = rng.uniform(0.4, 0.65)
+    lac = rng.uniform(1.8, 2.3)
+    sharp = rng.uniform(1.2, 3.0)
+    lo, hi = sorted([rng.uniform(-0.3, 0.6), rng.uniform(-0.3, 0.6)])
+    hi = max(hi, lo + 0.2)
+    cols = [[rng.uniform(0.05, 1) for _ in range(3)] for _ in range(3)]
+    rough = rng.uniform(0.05, 0.5)
+    spec = rng.uniform(0.1, 1.0)
+    kind = k % 3
+    c = lambda v: "color(%s, %s, %s)" % tuple(fmt(x) for x in v)
+    lines = []
+    lines.append("\t/* layer %d */" % k)
+    lines.append("\tpl = Pp * (%s * layerscale) + point(%s, %s, %s);"
+                 % (fmt(f), fmt(off[0]), fmt(off[1]), fmt(off[2])))
+    if kind == 0:
+        lines.append("\tpat = fbm(pl, %s, %s);" % (fmt(gain), fmt(lac)))
+        lines.append("\tpat2 = turb(pl * 1.7);")
+    elif kind == 1:
+        lines.append("\tpat = ridged(pl, %s) - 0.4;" % fmt(sharp))
+        lines.append("\tpat2 = fbm(pl * 0.5, %s, %s) * 0.5 + 0.5;" % (fmt(gain), fmt(lac)))
+    else:
+        lines.append("\tpat = fbm(pl + point(turb(pl) * %s), %s, %s);"
+                     % (fmt(rng.uniform(0.3, 1.2)), fmt(gain), fmt(lac)))
+        lines.append("\tpat2 = ridged(pl * 0.8, %s);" % fmt(sharp))
+    lines.append("\tmask = band(pat, %s, %s, %s) * layermix;"
+                 % (fmt(lo), fmt(hi), fmt(rng.uniform(0.02, 0.15))))
+    lines.append("\tmask = mask * (0.6 + 0.4 * clamp(pat2, 0, 1));")
+    lines.append("\tlc = ramp3(clamp(pat2, 0, 1), %s, %s, %s);" % (c(cols[0]), c(cols[1]), c(cols[2])))
+    lines.append("\tbase = mix(base, lc, mask);")
+    lines.append("\trough = mix(rough, %s, mask * 0.5);" % fmt(rough))
+    lines.append("\tspecw = mix(specw, %s, mask);" % fmt(spec))
+    lines.append("\tbump += mask * pat * %s;" % fmt(rng.uniform(0.005, 0.03)))
+    return "\n".join(lines)
+
+
+def shader(layers, seed, name):
+    rng = random.Random(seed)
+    out = ["/* Generated by tests/bench/gen_bigshader.py --layers %d --seed %d: do not edit. */"
+           % (layers, seed), "", helpers()]
+    out.append("""\
+surface
+%s(float Ka = 0.2; float Kd = 0.7; float Ks = 0.5; float roughness = 0.2;
+   float wrap = 0.25; float rimwidth = 0.35; color rimcolor = color(0.6, 0.7, 1);
+   float sheen = 0.15; float layerscale = 1; float layermix = 1)
+{
+	normal Nn = normalize(N);
+	vector V = -normalize(I);
+	point Pp = transform("shader", P);
+	color base = Cs, lc;
+	float rough = roughness, specw = 1, bump = 0, pat, pat2, mask;
+	point pl;
+""" % name)
+    for k in range(layers):
+        out.append(layer(rng, k))
+    out.append("""\
+	/* The pattern's bump, as a tilt of the normal along the pattern's own axes. */
+	normal Nb = normalize(Nn + vector(bump, -0.7 * bump, 0.4 * bump));
+	normal Nf = faceforward(Nb, I);
+	float r2 = max(rough * rough, 0.001);
+
+	/* Lobes: Lambert, wrap-around, PRMan specular, a sheen at grazing angles. */
+	color cdiff = 0, cwrap = 0, cspec = 0, csheen = 0, crim = 0;
+	illuminance(P, Nf, PI / 2) {
+		vector Ln = normalize(L);
+		float ndl = Nf . Ln;
+		cdiff += Cl * ndl;
+		cspec += Cl * specularbrdf(Ln, Nf, V, rough);
+		vector H = normalize(Ln + V);
+		float ndh = max(Nf . H, 0), vdh = max(V . H, 0);
+		float d = ndh * ndh * (r2 - 1) + 1;
+		float ggx = r2 / (PI * d * d);
+		float fres = 0.04 + 0.96 * pow(1 - vdh, 5);
+		csheen += Cl * ggx * fres * ndl * sheen;
+	}
+	illuminance(P) {
+		vector Ln = normalize(L);
+		float w = clamp((Nf . Ln + wrap) / (1 + wrap), 0, 1);
+		cwrap += Cl * w * w;
+		float edge = 1 - max(Nf . V, 0);
+		crim += Cl * smoothstep(1 - rimwidth, 1, edge) * max(0, -(Ln . V) * 0.5 + 0.5);
+	}
+	Oi = Os;
+	Ci = Os * (base * (Ka * ambient() + Kd * mix(cdiff, cwrap, 0.5))
+		   + Ks * specw * (cspec + csheen) + rimcolor * crim);
+}
+""")
+    return "\n".join(out)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--layers", type=int, default=64)
+    ap.add_argument("--seed", type=int, default=2007)
+    ap.add_argument("--name", default="bigsurface")
+    a = ap.parse_args()
+    print(shader(a.layers, a.seed, a.name))
+
+
+if __name__ == "__main__":
+    main()
