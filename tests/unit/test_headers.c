@@ -39,7 +39,7 @@ int rl_header_test_symbol(void)
 /* Enumerations that other code indexes tables with. */
 _Static_assert(SL_TYPE_VOID == 0 && SL_TYPE_COUNT == 9, "sl_basetype changed");
 _Static_assert(SL_TOK_EOF == 0, "SL_TOK_EOF must be 0 (zeroed tokens are EOF)");
-_Static_assert(SL_GLOBAL_P == 0 && SL_GLOBAL_COUNT == 26, "sl_global changed");
+_Static_assert(SL_GLOBAL_P == 0 && SL_GLOBAL_COUNT == 27, "sl_global changed");
 _Static_assert(SL_PEER_COUNT == 3, "sl_peer changed");
 _Static_assert(SL_DETAIL_DEFAULT == 0, "zeroed types must have the default detail");
 _Static_assert(SL_OP_NOP == 0, "a zeroed instruction must be a no-op");
