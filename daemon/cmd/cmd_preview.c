@@ -172,12 +172,20 @@ static int preview_gpu(const char *shot, const char *output, int level,
 	struct gpu_shot_stats full = { 0 }, lv[GPU_SHOT_LEVELS];
 	memset(lv, 0, sizeof(lv));
 	ok = ok && gpu_shot_render(s, GPU_SHOT_FINAL, &full);
-	for (size_t i = 0; ok && i < nedits; i++)
-		if (!gpu_shot_set(s, edits[i].light, edits[i].param, edits[i].values,
-				  edits[i].nvalues, err, sizeof(err))) {
+	for (size_t i = 0; ok && i < nedits; i++) {
+		const struct resolve_edit *e = &edits[i];
+		bool is_string = gpu_shot_param_is_string(s, e->light, e->param);
+		if (is_string ? !gpu_shot_set_string(s, e->light, e->param, e->text, err,
+						     sizeof(err))
+			      : e->nvalues == 0 ? snprintf(err, sizeof(err), "light '%s': parameter "
+							   "'%s' needs numbers, not '%s'", e->light,
+							   e->param, e->text) >= 0
+			      : !gpu_shot_set(s, e->light, e->param, e->values, e->nvalues, err,
+					      sizeof(err))) {
 			fprintf(stderr, "relight: error: %s\n", err);
 			ok = false;
 		}
+	}
 	double edit_ms = 0;
 	for (int L = 0; ok && L < GPU_SHOT_LEVELS; L++) {
 		ok = gpu_shot_render(s, L, &lv[L]);
@@ -263,7 +271,8 @@ int cmd_preview(int argc, char **argv)
 			{
 				int rc = cmd_set_option("preview", optarg, copies[nedits], MAX_EDIT_LEN,
 							&edits[nedits].light, &edits[nedits].param,
-							edits[nedits].values, &edits[nedits].nvalues);
+							edits[nedits].values, &edits[nedits].nvalues,
+							&edits[nedits].text);
 				if (rc != CMD_OK)
 					return rc;
 			}

@@ -640,7 +640,8 @@ int cmd_render(int argc, char **argv)
 			{
 				int rc = cmd_set_option("render", optarg, copies[nedits], MAX_EDIT_LEN,
 							&edits[nedits].light, &edits[nedits].param,
-							edits[nedits].values, &edits[nedits].nvalues);
+							edits[nedits].values, &edits[nedits].nvalues,
+							&edits[nedits].text);
 				if (rc != CMD_OK)
 					return rc;
 			}
