@@ -554,8 +554,7 @@ static bool bind_texmaps(struct gpu_shot *s, const struct kernel *k, const struc
 					    budget_room(s));
 		}
 		b[*nb] = (struct gpu_binding){ 0, false, s->zero, false };
-		if (!gpu_texmap_bind(k->prog, i, site->kind == SL_GLSL_MAP_ENVIRONMENT, m,
-				     SL_GLSL_SHADOW_UNIT0 + k->layout.nshadows + i, &b[*nb]))
+		if (!gpu_texmap_bind(m, SL_GLSL_SHADOW_UNIT0 + k->layout.nshadows + i, &b[*nb]))
 			return fail(s, "cannot bind the texture map of a kernel");
 		(*nb)++;
 	}

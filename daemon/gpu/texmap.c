@@ -14,13 +14,45 @@
 
 #define PI 3.14159265358979323846
 
+/* The header before the levels (sl/glsl_texmap.c): floats, ints as their bits. */
+#define HEADER (8 + 4 * GPU_TEXMAP_LEVELS)
+
 struct gpu_texmap {
 	struct gpu_buffer *texels;
 	size_t bytes;
-	int info[4];                         /* channels, levels, swrap, twrap */
-	int lv[4 * GPU_TEXMAP_LEVELS];       /* per level: first float, width, height, face */
-	float cube[3];                       /* cube or not, 0.5 / tan(fov / 2) as two floats */
 };
+
+static float int_bits(int32_t v)
+{
+	float f;
+	memcpy(&f, &v, sizeof(f));
+	return f;
+}
+
+/* The header of @info's map, whose levels start at float HEADER. */
+static void make_header(const struct reyes_tex_map_info *info, float h[HEADER])
+{
+	int32_t ints[8] = { (int32_t)info->nchannels, (int32_t)info->nlevels,
+			    (int32_t)info->swrap, (int32_t)info->twrap, info->cube ? 1 : 0 };
+	for (int k = 0; k < 8; k++)
+		h[k] = int_bits(ints[k]);
+	if (info->cube) {
+		/* texture.c dir_to_cube's k, in double there: here as a float and its remainder */
+		double k = 0.5 / tan(0.5 * info->fov * PI / 180.0);
+		h[5] = (float)k;
+		h[6] = (float)(k - (double)h[5]);
+	}
+	size_t at = HEADER;
+	for (uint32_t l = 0; l < GPU_TEXMAP_LEVELS; l++) {
+		const struct reyes_image *im = l < info->nlevels ? &info->levels[l] : NULL;
+		int32_t lv[4] = { im ? (int32_t)at : 0, im ? (int32_t)im->width : 0,
+				  im ? (int32_t)im->height : 0, im ? (int32_t)info->face_size[l] : 0 };
+		for (int k = 0; k < 4; k++)
+			h[8 + 4 * l + k] = int_bits(lv[k]);
+		if (im)
+			at += (size_t)im->width * im->height * im->nchannels;
+	}
+}
 
 struct gpu_texmap *gpu_texmap_load(struct gpu_ctx *ctx, struct reyes_texsys *ts,
 				   const char *name, char *err, size_t errlen)
@@ -41,10 +73,25 @@ struct gpu_texmap *gpu_texmap_load(struct gpu_ctx *ctx, struct reyes_texsys *ts,
 		snprintf(err, errlen, "%s: not found or unreadable", name);
 		return NULL;
 	}
-	if (info.nlevels > GPU_TEXMAP_LEVELS || !info.nchannels) {
+	if (info.nlevels > GPU_TEXMAP_LEVELS || !info.nchannels || !info.nlevels) {
 		snprintf(err, errlen, "%s: %u levels of %u channels cannot be read on the GPU "
 			 "(at most %d levels: maps up to %u texels on a side)", name, info.nlevels,
 			 info.nchannels, GPU_TEXMAP_LEVELS, 1u << (GPU_TEXMAP_LEVELS - 1));
+		return NULL;
+	}
+	size_t total = HEADER;
+	for (uint32_t l = 0; l < info.nlevels; l++) {
+		const struct reyes_image *im = &info.levels[l];
+		if (im->nchannels != info.nchannels) {
+			snprintf(err, errlen, "%s: level %u has %u channels, level 0 %u", name, l,
+				 im->nchannels, info.nchannels);
+			return NULL;
+		}
+		total += (size_t)im->width * im->height * im->nchannels;
+	}
+	/* texel indices are ints in the kernel */
+	if (total > (size_t)INT32_MAX) {
+		snprintf(err, errlen, "%s: %zu floats cannot be read on the GPU", name, total);
 		return NULL;
 	}
 	struct gpu_texmap *m = calloc(1, sizeof(*m));
@@ -52,53 +99,24 @@ struct gpu_texmap *gpu_texmap_load(struct gpu_ctx *ctx, struct reyes_texsys *ts,
 		snprintf(err, errlen, "%s: out of memory", name);
 		return NULL;
 	}
-	size_t total = 0;
-	for (uint32_t l = 0; l < info.nlevels; l++) {
-		const struct reyes_image *im = &info.levels[l];
-		if (im->nchannels != info.nchannels || total > (size_t)INT32_MAX) {
-			snprintf(err, errlen, "%s: level %u does not fit", name, l);
-			free(m);
-			return NULL;
-		}
-		m->lv[4 * l] = (int)total;
-		m->lv[4 * l + 1] = (int)im->width;
-		m->lv[4 * l + 2] = (int)im->height;
-		m->lv[4 * l + 3] = (int)info.face_size[l];
-		total += (size_t)im->width * im->height * im->nchannels;
-	}
-	/* texel indices are ints in the kernel */
-	if (!total || total > (size_t)INT32_MAX) {
-		snprintf(err, errlen, "%s: %zu floats cannot be read on the GPU", name, total);
-		free(m);
-		return NULL;
-	}
+	float header[HEADER];
+	make_header(&info, header);
 	m->texels = gpu_buffer_create(ctx, total * sizeof(float), NULL);
-	for (uint32_t l = 0; m->texels && l < info.nlevels; l++) {
+	bool ok = m->texels && gpu_buffer_write(m->texels, 0, sizeof(header), header);
+	size_t at = HEADER;
+	for (uint32_t l = 0; ok && l < info.nlevels; l++) {
 		const struct reyes_image *im = &info.levels[l];
 		size_t n = (size_t)im->width * im->height * im->nchannels;
-		if (!gpu_buffer_write(m->texels, (size_t)m->lv[4 * l] * sizeof(float),
-				      n * sizeof(float), im->data)) {
-			gpu_buffer_destroy(m->texels);
-			m->texels = NULL;
-		}
+		ok = gpu_buffer_write(m->texels, at * sizeof(float), n * sizeof(float), im->data);
+		at += n;
 	}
-	if (!m->texels) {
+	if (!ok) {
 		snprintf(err, errlen, "%s: cannot upload %zu floats", name, total);
+		gpu_buffer_destroy(m->texels);
 		free(m);
 		return NULL;
 	}
 	m->bytes = total * sizeof(float);
-	m->info[0] = (int)info.nchannels;
-	m->info[1] = (int)info.nlevels;
-	m->info[2] = (int)info.swrap;
-	m->info[3] = (int)info.twrap;
-	if (info.cube) {
-		/* texture.c dir_to_cube's k, in double there: here as a float and its remainder */
-		double k = 0.5 / tan(0.5 * info.fov * PI / 180.0);
-		m->cube[0] = 1.0f;
-		m->cube[1] = (float)k;
-		m->cube[2] = (float)(k - (double)m->cube[1]);
-	}
 	return m;
 }
 
@@ -115,26 +133,10 @@ size_t gpu_texmap_bytes(const struct gpu_texmap *m)
 	return m ? m->bytes : 0;
 }
 
-bool gpu_texmap_bind(struct gpu_program *p, uint32_t site, bool environment,
-		     const struct gpu_texmap *m, uint32_t unit, struct gpu_binding *b)
+bool gpu_texmap_bind(const struct gpu_texmap *m, uint32_t unit, struct gpu_binding *b)
 {
-	if (!p || !b || site > 1000000u || (!m && !b->buffer))
+	if (!b || (!m && !b->buffer))
 		return false;
-	static const int none[4 * GPU_TEXMAP_LEVELS];
-	static const float flat[3];
-	char name[64];
-	snprintf(name, sizeof(name), "u_map%u_info", site);
-	int info[4] = { 0, 0, 0, 0 };
-	if (m)
-		memcpy(info, m->info, sizeof(info));
-	if (!gpu_uniform_ints(p, name, info, 4))
-		return false;
-	snprintf(name, sizeof(name), "u_map%u_lv", site);
-	gpu_uniform_ints(p, name, m ? m->lv : none, 4 * GPU_TEXMAP_LEVELS);
-	if (environment) {
-		snprintf(name, sizeof(name), "u_map%u_cube", site);
-		gpu_uniform_float(p, name, m ? m->cube : flat, 3);
-	}
 	b->unit = unit;
 	b->ssbo = false;
 	b->rgba = false;

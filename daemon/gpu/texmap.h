@@ -2,8 +2,8 @@
  * Texture and environment maps on the GPU for the texture() and
  * environment() calls of generated kernels (sl/glsl.h map sites): a map as
  * the texture system holds it (every mip level, channels reordered),
- * uploaded once, and bound to a kernel's call site with its level table
- * and wrap modes.
+ * uploaded once with its level table and wrap modes, and bound to a
+ * kernel's call site.
  */
 #ifndef GPU_TEXMAP_H
 #define GPU_TEXMAP_H
@@ -18,7 +18,7 @@
 struct reyes_texsys;
 struct gpu_texmap;
 
-/** The most mip levels a map may have on the GPU (glsl_texmap.c RL_MAP_LEVELS). */
+/** The most mip levels a map may have on the GPU (the level table of sl/glsl_texmap.c). */
 #define GPU_TEXMAP_LEVELS 16
 
 /**
@@ -34,15 +34,13 @@ void gpu_texmap_destroy(struct gpu_texmap *m);
 size_t gpu_texmap_bytes(const struct gpu_texmap *m);
 
 /**
- * Set the uniforms of map site @site of @p (u_map<site>_*) for map @m and
- * fill @b with the binding to pass to gpu_dispatch(): the map's texels at
- * texture unit @unit (SL_GLSL_SHADOW_UNIT0 + the kernel's shadow sites +
- * @site). @m NULL: no map, the lookup gives the fill; then @b must come in
- * with b->buffer set to any buffer of @ctx, as for gpu_shadow_map_bind.
- * @environment: the site is an environment() call (it has the cube uniforms).
+ * Fill @b with the binding of map @m for gpu_dispatch(): its buffer (levels
+ * and their table, sl/glsl_texmap.c) at texture unit @unit, that of map site
+ * k of a kernel: SL_GLSL_SHADOW_UNIT0 + the kernel's shadow sites + k. @m
+ * NULL: no map, the lookups give the fill; then @b must come in with
+ * b->buffer set to a buffer of zeros of the same context (any size).
  */
-bool gpu_texmap_bind(struct gpu_program *p, uint32_t site, bool environment,
-		     const struct gpu_texmap *m, uint32_t unit, struct gpu_binding *b);
+bool gpu_texmap_bind(const struct gpu_texmap *m, uint32_t unit, struct gpu_binding *b);
 
 struct gpu_texmaps;
 

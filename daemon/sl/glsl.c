@@ -1972,11 +1972,6 @@ int sl_glsl_map_site(struct glsl_gen *g, const struct sl_insn *in, enum sl_glsl_
 	rl_vec_push(g->msites, site);
 	p->msite[pc] = (int32_t)k;
 	/* the sampler's declaration, with its unit, comes when the shadow sites are all known */
-	struct rl_strbuf *u = &g->sec[GS_UNIFORMS];
-	rl_strbuf_printf(u, "uniform ivec4 u_map%u_info;\n", k);
-	rl_strbuf_printf(u, "uniform ivec4 u_map%u_lv[16];\n", k);
-	if (kind == SL_GLSL_MAP_ENVIRONMENT)
-		rl_strbuf_printf(u, "uniform float u_map%u_cube[3];\n", k);
 	return (int)k;
 }
 

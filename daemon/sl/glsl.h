@@ -149,11 +149,10 @@ struct sl_glsl_layout {
  * reyes_tex_shadow), in the same arithmetic. The constant empty name is the
  * fill, with no site. With input_steps, texture() and environment() of a
  * map named by a string parameter or a constant read map site k's
- * samplerBuffer "u_map<k>" (one R32F buffer: every level, row-major,
- * channels interleaved) with the uniforms ivec4 "u_map<k>_info", ivec4
- * "u_map<k>_lv[16]" and float "u_map<k>_cube[3]" (glsl_texmap.c says what
- * they hold; gpu/texmap.h gpu_texmap_bind sets them), filtered as
- * render/texture.c filters. Without input_steps they read no file: a name
+ * samplerBuffer "u_map<k>" (one R32F buffer: a header with the level table
+ * and wrap modes, then every level, row-major, channels interleaved, as
+ * glsl_texmap.c says and gpu/texmap.c writes; a buffer of zeros is no map,
+ * the fill), filtered as render/texture.c filters. Without input_steps they read no file: a name
  * known only at run time gives the fill (a warning), a constant one is an
  * error; shadow() is treated the same way.
  * Every built-in the code uses is emitted with the interpreter's numerics.

@@ -716,7 +716,7 @@ static const struct helper helpers[GH_COUNT] = {
 	[GH_FILTERSTEP] = { filterstep_glsl, { 0 } },
 	[GH_DERIV] = { deriv_glsl, { GH_FILTERSTEP } },
 	[GH_SHADOW] = { shadow_glsl, { GH_DERIV, GH_NOISE } },
-	[GH_TEXMAP] = { sl_glsl_texmap_src, { GH_DERIV, GH_MATH } },
+	[GH_TEXMAP] = { sl_glsl_texmap_src, { GH_DERIV } },
 };
 
 /* Output order: every helper after the ones it calls. */
@@ -1910,15 +1910,14 @@ static void call_texmap(struct glsl_gen *g, const struct sl_insn *in, int id)
 	int nc = ncomp(g, in->dst) == 3 ? 3 : 1;
 	const char *e;
 	if (id == SL_BI_TEXTURE)
-		e = SL_GLSL_FMT(g, "rl_texture(u_map%d, u_map%d_info, u_map%d_lv, %s, %d, "
-				"vec4(%s, %s, %s, %s), vec4(%s, %s, %s, %s), %s, %s, %s, %s, %s)",
-				site, site, site, op(g, a[1], 1), nc, c[0], c[2], c[4], c[6], c[1],
-				c[3], c[5], c[7], o[0], o[1], o[2], o[3], o[4]);
-	else
-		e = SL_GLSL_FMT(g, "rl_environment(u_map%d, u_map%d_info, u_map%d_lv, u_map%d_cube, "
-				"%s, %d, %s, %s, %s, %s, %s, %s, %s, %s, %s)", site, site, site, site,
-				op(g, a[1], 1), nc, c[0], c[1], c[2], c[3], o[0], o[1], o[2], o[3],
+		e = SL_GLSL_FMT(g, "rl_texture(u_map%d, %s, %d, vec4(%s, %s, %s, %s), "
+				"vec4(%s, %s, %s, %s), %s, %s, %s, %s, %s)", site, op(g, a[1], 1), nc,
+				c[0], c[2], c[4], c[6], c[1], c[3], c[5], c[7], o[0], o[1], o[2], o[3],
 				o[4]);
+	else
+		e = SL_GLSL_FMT(g, "rl_environment(u_map%d, %s, %d, %s, %s, %s, %s, %s, %s, %s, %s, "
+				"%s)", site, op(g, a[1], 1), nc, c[0], c[1], c[2], c[3], o[0], o[1], o[2],
+				o[3], o[4]);
 	set_dst(g, in, nc == 3 ? e : SL_GLSL_FMT(g, "%s.x", e));
 }
 

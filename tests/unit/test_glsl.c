@@ -2776,9 +2776,9 @@ static bool bind_test_tex(struct stencil_run *t, struct gpu_program *gp, struct 
 {
 	if (t->lay.nmaps != 1)
 		return false;
+	(void)gp;
 	b[*nb].buffer = bin;
-	return gpu_texmap_bind(gp, 0, t->lay.maps[0].kind == SL_GLSL_MAP_ENVIRONMENT, test_tex,
-			       SL_GLSL_SHADOW_UNIT0 + t->lay.nshadows, &b[(*nb)++]);
+	return gpu_texmap_bind(test_tex, SL_GLSL_SHADOW_UNIT0 + t->lay.nshadows, &b[(*nb)++]);
 }
 
 /*
