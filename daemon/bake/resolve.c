@@ -86,7 +86,7 @@ static bool apply_edits(struct resolver *r, struct light *L, const char *name,
 		int k = sl_program_find_param(L->prog, e->param);
 		if (k >= 0 && !L->prog->params[k].output &&
 		    L->prog->params[k].type.base == SL_TYPE_STRING &&
-		    L->prog->params[k].type.arraylen < 0 && e->text) {
+		    L->prog->params[k].type.arraylen < 0 && e->nvalues == 0 && e->text) {
 			/* a string, a map's name say */
 			if (!sl_exec_set_param_string(L->x, e->param, e->text))
 				return false;

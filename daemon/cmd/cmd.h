@@ -52,7 +52,9 @@ bool cmd_parse_light_edit(char *arg, const char **light, const char **param, flo
 
 /**
  * The same for an edit whose value may be a string (a map's name): *@text
- * is the value as written; *@n is 0 when it is not numbers.
+ * is the value as written; *@n is 0 when it is a string: not numbers, and
+ * beginning with neither a digit, a sign, a dot nor a comma (so that "1x" or
+ * "1,,2" stay malformed numbers), or beginning with "./" or "../".
  */
 bool cmd_parse_light_edit_text(char *arg, const char **light, const char **param,
 			       float values[16], uint32_t *n, const char **text);

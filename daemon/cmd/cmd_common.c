@@ -153,8 +153,14 @@ bool cmd_parse_light_edit_text(char *arg, const char **light, const char **param
 	*light = arg;
 	*param = dot + 1;
 	*text = eq + 1;
-	if (!numbers)
-		*n = 0;
+	if (numbers)
+		return true;
+	/* not numbers: a string, unless it is a number gone wrong ("1x", "1,,2", "") */
+	const char *t = *text;
+	bool numeric = !t[0] || strchr("0123456789+-.,", t[0]);
+	if (numeric && strncmp(t, "./", 2) && strncmp(t, "../", 3))
+		return false;
+	*n = 0;
 	return true;
 }
 
@@ -166,6 +172,6 @@ int cmd_set_option(const char *cmd, const char *arg, char *copy, size_t cap, con
 	memcpy(copy, arg, strlen(arg) + 1);
 	if (!cmd_parse_light_edit_text(copy, light, param, values, n, text))
 		return cmd_usage_error(cmd, "--set needs LIGHT.PARAM=V[,V,...] with up to 16 "
-				       "numbers, or LIGHT.PARAM=STRING, not '%s'", arg);
+				       "numbers, or LIGHT.PARAM=TEXT for a string, not '%s'", arg);
 	return CMD_OK;
 }

@@ -182,7 +182,7 @@ static int preview_gpu(const char *shot, const char *output, int level,
 	gpu_program_stats(ctx, &hits0, &built0);
 	for (size_t i = 0; ok && i < nedits; i++) {
 		const struct resolve_edit *e = &edits[i];
-		bool is_string = gpu_shot_param_is_string(s, e->light, e->param);
+		bool is_string = e->nvalues == 0 && gpu_shot_param_is_string(s, e->light, e->param);
 		if (is_string ? !gpu_shot_set_string(s, e->light, e->param, e->text, err,
 						     sizeof(err))
 			      : e->nvalues == 0 ? snprintf(err, sizeof(err), "light '%s': parameter "

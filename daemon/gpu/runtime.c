@@ -2203,6 +2203,23 @@ bool gpu_shot_set_string(struct gpu_shot *s, const char *light, const char *para
 	return true;
 }
 
+char *gpu_shot_get_string(const struct gpu_shot *s, const char *light, const char *param)
+{
+	if (!gpu_shot_param_is_string(s, light, param))
+		return NULL;
+	const struct light *L = &s->lights[gpu_shot_find_light(s, light)];
+	const struct sl_program *lp = s->lshaders[L->shader].prog;
+	uint32_t si = 0;
+	for (uint32_t p = 0; p < lp->nparams; p++) {
+		if (lp->regs[lp->params[p].reg].type != SL_TYPE_STRING)
+			continue;
+		if (!strcmp(lp->params[p].name, param))
+			return si < L->cur.ns ? rl_xstrdup(L->cur.s[si]) : NULL;
+		si++;
+	}
+	return NULL;
+}
+
 uint32_t gpu_shot_texmaps(const struct gpu_shot *s, size_t *bytes)
 {
 	if (bytes)

@@ -103,6 +103,9 @@ bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
 bool gpu_shot_set_string(struct gpu_shot *s, const char *light, const char *param,
 			 const char *value, char *err, size_t errlen);
 
+/** The value of string parameter @param of light @light (free() it), or NULL if none. */
+char *gpu_shot_get_string(const struct gpu_shot *s, const char *light, const char *param);
+
 /** Is @param a string parameter of light @light? */
 bool gpu_shot_param_is_string(const struct gpu_shot *s, const char *light, const char *param);
 

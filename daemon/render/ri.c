@@ -1802,7 +1802,8 @@ static bool apply_light_edit(struct ri *ri, const struct rib_request *r,
 	uint32_t i = 0;
 	while (i < sh->nparams && strcmp(vals[i].name, sp->name) != 0)
 		i++;
-	if (sp->type.base == SL_TYPE_STRING && sp->type.arraylen < 0 && e->text) {
+	if (sp->type.base == SL_TYPE_STRING && sp->type.arraylen < 0 && e->nvalues == 0 &&
+	    e->text) {
 		/* a string: the value as written, a map's name say */
 		const char **sv = rl_arena_alloc(reyes_ri_cur_arena(ri), sizeof(char *));
 		size_t len = strlen(e->text) + 1;
@@ -1823,8 +1824,8 @@ static bool apply_light_edit(struct ri *ri, const struct rib_request *r,
 	}
 	if (sp->type.base == SL_TYPE_STRING || sp->type.arraylen >= 0 || nc == 0) {
 		reyes_ri_err(ri, r->loc, "--set %s.%s: parameter '%s' of shader '%s' is a %s%s; only "
-			     "float, colour, point, vector, normal and matrix parameters can be "
-			     "edited", e->light, e->param, e->param, sh->name,
+			     "float, colour, point, vector, normal and matrix parameters take "
+			     "numbers (a string takes its text, an array nothing)", e->light, e->param, e->param, sh->name,
 			     sl_basetype_name(sp->type.base), sp->type.arraylen >= 0 ? " array" : "");
 		return false;
 	}

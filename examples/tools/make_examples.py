@@ -487,13 +487,14 @@ FrameEnd
 write("examples/crowd/crowd.rib", crowd)
 
 # ---- textured_lights: slides, a cookie, a projector and an environment-coloured light ----
-def pattern_frame(n, display, width, height, cells):
-    """A frame that renders flat colour cells to @display: an image for MakeTexture."""
+def pattern_frame(n, display, width, height, cells, filt="\"box\" 1 1"):
+    """A frame that renders colour cells to @display (@filt softens their edges): an
+    image for MakeTexture."""
     a = width / height
     out = ["FrameBegin %d" % n,
            "  Format %d %d 1" % (width, height),
            "  PixelSamples 1 1",
-           '  PixelFilter "box" 1 1',
+           '  PixelFilter %s' % filt,
            '  Projection "orthographic"',
            '  Display "%s" "file" "rgb"' % display,
            "  WorldBegin",
@@ -518,11 +519,14 @@ cookie = [[(1, 1, 1) if (i % 2 == 0 and j % 2 == 0) else (0.05, 0.05, 0.05) for 
 sky = [(0.9, 0.55, 0.3), (1, 0.9, 0.6), (0.5, 0.8, 1), (0.3, 0.4, 0.9)]
 env = [[[sky[j][c] * (0.6 + 0.4 * ((i * 3 + j) % 4) / 3) for c in range(3)] for i in range(8)]
        for j in range(4)]
+# Slides with edges a few texels soft: a texel edge that sharp, magnified on a wall, is
+# where the bake's filter regions and the render's differ most.
+soft = '"gaussian" 6 6'
 maps = "##RenderMan RIB\n" \
     "# The pictures of the textured_lights example, flat colour cells: render this file in\n" \
     "# this folder (relight render maps.rib) to remake the committed .exr files.\n" \
-    "version 3.04\n" + "\n".join([pattern_frame(1, "slide_a.exr", 64, 64, slide_a),
-                                  pattern_frame(2, "slide_b.exr", 64, 64, slide_b),
+    "version 3.04\n" + "\n".join([pattern_frame(1, "slide_a.exr", 64, 64, slide_a, soft),
+                                  pattern_frame(2, "slide_b.exr", 64, 64, slide_b, soft),
                                   pattern_frame(3, "cookie.exr", 48, 48, cookie),
                                   pattern_frame(4, "env.exr", 128, 64, env)]) + "\n"
 write("examples/textured_lights/maps/maps.rib", maps)
@@ -545,13 +549,14 @@ FrameBegin 1
   %(cam)s
   WorldBegin
     LightSource "ambientlight" 1 "intensity" 0.05
-    AttributeBegin
+    TransformBegin
       %(slide_place)s
       LightSource "uberlight" 2 "intensity" 1.5 "slidename" "slide_a.tx"
           "width" 0.35 "height" 0.35 "wedge" 0.05 "hedge" 0.05
-    AttributeEnd
+    TransformEnd
     LightSource "cookielight" 3 "intensity" 25 "from" [3.5 5 0.5] "to" [0.8 0 3.5]
         "coneangle" 0.35 "conedeltaangle" 0.05 "cookiename" "cookie.tx" "cookiescale" 1.5
+        "blur" 0.01
     LightSource "projector" 4 "intensity" 14 "from" [0.3 2.2 -1.2] "to" [0 1.6 6]
         "fov" 0.5 "aspect" 1.5 "slidename" "slide_b.tx"
     LightSource "envcolorlight" 5 "intensity" 1.2 "from" [-0.6 1.1 2.4] "envname" "env.tx"
