@@ -46,7 +46,8 @@ g = json.load(open(p + ".gpu.json"))
 print("%s: GPU vs CPU max_rel %.2g (limit %g); GPU vs render mean %.4f %% max %.4f %% (limits %g, %g); "
       "edit %.0f ms, %d programs made by the edit, %d maps in %d bytes"
       % (p.rsplit("/", 1)[1], c["max_rel"], max_rel, r["mean_pct"], r["max_pct"], max_mean, max_max,
-         g["edit_ms"], g["programs_by_edits"], g["texture_maps"], g["texture_map_bytes"]))
+         g["edit_ms"], g.get("programs_by_edits", -1), g.get("texture_maps", -1),
+         g.get("texture_map_bytes", -1)))
 assert c["max_rel"] <= max_rel and r["mean_pct"] <= max_mean and r["max_pct"] <= max_max
 PY
 }
