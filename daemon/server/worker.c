@@ -310,7 +310,12 @@ static bool apply_set(struct gpu_shot *g, const struct srv_job *j, char *err, si
  * shader lacks, or a value it does not take. */
 static enum proto_error_code code_of(const char *err)
 {
-	return strstr(err, "has no parameter") ? PROTO_E_UNKNOWN_PARAM : PROTO_E_RANGE;
+	if (strstr(err, "has no parameter"))
+		return PROTO_E_UNKNOWN_PARAM;
+	/* a string for a number, or numbers for a string */
+	if (strstr(err, "not a string") || strstr(err, "is a string"))
+		return PROTO_E_TYPE;
+	return PROTO_E_RANGE;
 }
 
 static bool apply_job(struct srv *s, struct srv_shot *sh, const struct srv_job *j, char *err,
