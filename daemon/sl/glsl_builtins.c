@@ -7,8 +7,9 @@
  *
  * What the GPU cannot do is an error at the call: derivatives (Du, Dv,
  * Deriv, area, calculatenormal, two-argument filterstep) except on
- * derivative stencils (slice->input_steps), random(), texture files but
- * shadow maps on stencils, string building (format, concat), host queries
+ * derivative stencils (slice->input_steps), random(), map files except on
+ * stencils (shadow maps here; texture and environment maps with
+ * glsl_texmap.c's filters), string building (format, concat), host queries
  * (attribute, option, rendererinfo, depth). printf is dropped with a
  * warning.
  *
