@@ -951,7 +951,11 @@ static void *worker_main(void *arg)
 			  read_level(sh->gpu, level, &im, need8, need16);
 		if (ok)
 			level_build(s, sh, &im, need8, need16, edit, level, st.ms, t0, &lf);
+		/* maps a swapped slide loaded, or freed, change what the shot holds */
+		size_t bytes = gpu_shot_bytes(sh->gpu);
 		pthread_mutex_lock(&s->lock);
+		atomic_fetch_add(&s->metrics.gpu_bytes, (int_fast64_t)bytes - (int_fast64_t)sh->bytes);
+		sh->bytes = bytes;
 		s->worker_beat = srv_now();
 		if (!ok) {
 			diag_log(sh, RL_LOG_ERROR);
