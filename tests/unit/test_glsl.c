@@ -2731,7 +2731,8 @@ static struct gpu_texmap *test_tex;
  * A picture of @w x @h with sharp cells and a smooth ramp (so that every
  * filter footprint and mip level shows), written to @path as an EXR.
  */
-static bool write_test_picture(const char *path, uint32_t w, uint32_t h, uint32_t nch)
+static bool write_test_picture(const char *path, uint32_t w, uint32_t h, uint32_t nch,
+			       uint32_t shift)
 {
 	static const char *const names[] = { "R", "G", "B" };
 	struct reyes_image im;
@@ -2740,9 +2741,10 @@ static bool write_test_picture(const char *path, uint32_t w, uint32_t h, uint32_
 	for (uint32_t y = 0; y < h; y++)
 		for (uint32_t x = 0; x < w; x++)
 			for (uint32_t c = 0; c < nch; c++) {
-				bool cell = ((x * 5 / w) + (y * 3 / h) + c) % 2 == 0;
+				bool cell = ((x * 5 / w) + (y * 3 / h) + c + shift) % 2 == 0;
 				im.data[((size_t)y * w + x) * nch + c] =
-					(cell ? 0.9f : 0.1f) + 0.3f * (float)x / (float)w * (float)(c + 1);
+					(cell ? 0.9f : 0.1f) + 0.3f * (float)x / (float)w * (float)(c + 1) +
+					0.1f * (float)shift;
 			}
 	bool ok = reyes_image_write_exr(path, &im, false, stderr);
 	reyes_image_finish(&im);
@@ -2802,6 +2804,8 @@ static void test_texture_maps(void)
 		{ "projector", "slidename", "periodic", "blur", 0.0f, 16, 16, 3 },
 		{ "envcolorlight", "envname", "latlong", NULL, 0, 64, 32, 3 },
 		{ "envcolorlight", "envname", "latlong", "blur", 0.1f, 64, 32, 3 },
+		{ "envcolorlight", "envname", "cube", NULL, 0, 16, 16, 3 },
+		{ "envcolorlight", "envname", "cube", "blur", 0.2f, 32, 32, 3 },
 	};
 	char dir[] = "/tmp/relight-glsl-XXXXXX";
 	CHECK(mkdtemp(dir) != NULL);
@@ -2810,11 +2814,26 @@ static void test_texture_maps(void)
 	snprintf(tex, sizeof(tex), "%s/relight_test_glsl_tex.tx", dir);
 	struct sl_program *surf = load("plastic");
 	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
-		CHECK(write_test_picture(pic, cases[i].w, cases[i].h, cases[i].nch));
-		bool env = !strcmp(cases[i].make, "latlong");
-		CHECK(env ? reyes_make_latlong_environment(pic, tex, "box", 1, 1, stderr)
-			  : reyes_make_texture(pic, tex, cases[i].make, cases[i].make, "box", 1, 1,
-					       stderr));
+		CHECK(write_test_picture(pic, cases[i].w, cases[i].h, cases[i].nch, 0));
+		if (!strcmp(cases[i].make, "cube")) {
+			/* six faces, each its own picture, 100 degrees wide (a margin) */
+			char faces[6][160];
+			const char *fp[6];
+			for (int f = 0; f < 6; f++) {
+				snprintf(faces[f], sizeof(faces[f]), "%s/face%d.exr", dir, f);
+				fp[f] = faces[f];
+				CHECK(write_test_picture(faces[f], cases[i].w, cases[i].h, cases[i].nch,
+							 (uint32_t)f));
+			}
+			CHECK(reyes_make_cube_environment(fp, tex, 100, "box", 1, 1, stderr));
+			for (int f = 0; f < 6; f++)
+				unlink(faces[f]);
+		} else if (!strcmp(cases[i].make, "latlong")) {
+			CHECK(reyes_make_latlong_environment(pic, tex, "box", 1, 1, stderr));
+		} else {
+			CHECK(reyes_make_texture(pic, tex, cases[i].make, cases[i].make, "box", 1, 1,
+						 stderr));
+		}
 		struct reyes_texsys *ts = reyes_texsys_create(dir, current_to_world, stderr);
 		struct sl_program *light = load(cases[i].light);
 		CHECK(ts && surf && light);
