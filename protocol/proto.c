@@ -107,11 +107,20 @@ static bool opt_bool(const cJSON *o, const char *key, bool dflt, const char *op,
 	return true;
 }
 
-/* A parameter's value: a number or an array of 1 to 16 numbers, all finite floats. */
+/* A parameter's value: a number or an array of 1 to 16 numbers, all finite
+ * floats, or a string of at most 4095 bytes (a string parameter's: a map). */
 static bool param_value(const cJSON *v, const char *op, struct proto_param *p,
 			struct proto_error *e)
 {
 	p->n = 0;
+	p->text = NULL;
+	if (cJSON_IsString(v)) {
+		if (strlen(v->valuestring) > 4095)
+			return set_error(e, PROTO_E_RANGE, "%s: '%s' is a string over 4095 bytes", op,
+					 p->name);
+		p->text = v->valuestring;
+		return true;
+	}
 	if (cJSON_IsNumber(v)) {
 		if (!isfinite(v->valuedouble) || fabs(v->valuedouble) > 3.4e38)
 			return set_error(e, PROTO_E_RANGE, "%s: '%s' is not a finite float", op, p->name);
@@ -119,8 +128,8 @@ static bool param_value(const cJSON *v, const char *op, struct proto_param *p,
 		return true;
 	}
 	if (!cJSON_IsArray(v))
-		return set_error(e, PROTO_E_TYPE, "%s: '%s' must be a number or an array of numbers",
-				 op, p->name);
+		return set_error(e, PROTO_E_TYPE, "%s: '%s' must be a number, an array of numbers "
+				 "or a string", op, p->name);
 	int n = cJSON_GetArraySize(v);
 	if (n < 1 || n > 16)
 		return set_error(e, PROTO_E_RANGE, "%s: '%s' has %d values (1 to 16)", op, p->name, n);

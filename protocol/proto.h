@@ -66,11 +66,12 @@ struct proto_error {
 	char message[256];
 };
 
-/** A parameter of a "set" (or of an "add_light"): one to 16 finite numbers. */
+/** A parameter of a "set" (or of an "add_light"): one to 16 finite numbers, or a string. */
 struct proto_param {
 	const char *name;
 	float values[16];
-	uint32_t n;
+	uint32_t n;                /* 0 for a string */
+	const char *text;          /* a string's value (a map's name), else NULL */
 };
 
 /** How much a request may hold. */

@@ -782,10 +782,15 @@ def _is_number(x):
 
 
 def _param_value(name, v):
+    if isinstance(v, str):
+        # a string parameter's value: a texture or environment map's name
+        if len(v.encode()) > 4095:
+            raise ArgumentError("parameter %r: a string of at most 4095 bytes" % name)
+        return v
     if _is_number(v):
         values = [float(v)]
     elif isinstance(v, (str, bytes, bytearray, dict)) or not hasattr(v, "__iter__"):
-        raise ArgumentError("parameter %r: a number or a sequence of numbers, not %r"
+        raise ArgumentError("parameter %r: a number, a sequence of numbers or a string, not %r"
                             % (name, v))
     else:
         values = list(v)

@@ -84,6 +84,20 @@ static bool apply_edits(struct resolver *r, struct light *L, const char *name,
 		char err[512];
 		char who[300];
 		snprintf(who, sizeof(who), "light '%s'", name);
+		int k = sl_program_find_param(L->prog, e->param);
+		if (k >= 0 && !L->prog->params[k].output &&
+		    L->prog->params[k].type.base == SL_TYPE_STRING &&
+		    L->prog->params[k].type.arraylen < 0 && e->nvalues == 0 && e->text) {
+			/* a string, a map's name say */
+			if (!sl_exec_set_param_string(L->x, e->param, e->text))
+				return false;
+			continue;
+		}
+		if (e->nvalues == 0) {
+			fprintf(r->diag, "relight: error: %s: parameter '%s' needs numbers, not '%s'\n",
+				who, e->param, e->text ? e->text : "");
+			return false;
+		}
 		if (!shot_meta_check_edit(L->prog, who, e->param, e->values, e->nvalues, v, &n, err,
 					  sizeof(err))) {
 			fprintf(r->diag, "relight: error: %s\n", err);

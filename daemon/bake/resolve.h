@@ -17,7 +17,8 @@ struct resolve_edit {
 	const char *param;
 	float values[16];
 	uint32_t nvalues;          /* 1 for a float; 3 for a colour, point or vector (1 broadcasts
-				      to a colour); 16 for a matrix */
+				      to a colour); 16 for a matrix; 0: @text is the value */
+	const char *text;          /* the value as written: a string parameter's */
 };
 
 struct resolve_opts {

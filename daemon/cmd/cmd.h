@@ -51,12 +51,23 @@ bool cmd_parse_light_edit(char *arg, const char **light, const char **param, flo
 			  uint32_t *n);
 
 /**
+ * The same for an edit whose value may be a string (a map's name): *@text
+ * is the value as written; *@n is 0 when it is a string: not numbers, and
+ * beginning with neither a digit, a sign, a dot nor a comma (so that "1x" or
+ * "1,,2" stay malformed numbers), or beginning with "./" or "../".
+ */
+bool cmd_parse_light_edit_text(char *arg, const char **light, const char **param,
+			       float values[16], uint32_t *n, const char **text);
+
+/**
  * The --set option of command @cmd ("render", "preview"): @arg copied into
  * @copy (@cap bytes, which the caller keeps: *@light and *@param point into
- * it) and parsed by cmd_parse_light_edit. CMD_OK, or the usage error, printed.
+ * it) and parsed by cmd_parse_light_edit_text: a value that is not numbers is
+ * a string, for string parameters (*@n 0, *@text the value). CMD_OK, or the
+ * usage error, printed.
  */
 int cmd_set_option(const char *cmd, const char *arg, char *copy, size_t cap, const char **light,
-		   const char **param, float values[16], uint32_t *n);
+		   const char **param, float values[16], uint32_t *n, const char **text);
 
 /**
  * The default shader search path: $RELIGHT_SHADER_PATH, then

@@ -130,14 +130,48 @@ int cmd_add_include(const char *cmd, char *buf, size_t size, const char *dir)
 	return CMD_OK;
 }
 
+bool cmd_parse_light_edit_text(char *arg, const char **light, const char **param,
+			       float values[16], uint32_t *n, const char **text)
+{
+	char *eq = strchr(arg, '=');
+	if (!eq)
+		return false;
+	/* the numbers are parsed from a copy: the text stays as written */
+	size_t len = strlen(eq + 1);
+	char *num = malloc(len + 2 + (size_t)(eq - arg));
+	if (!num)
+		return false;
+	memcpy(num, arg, (size_t)(eq - arg) + len + 2);
+	const char *l2, *p2;
+	bool numbers = cmd_parse_light_edit(num, &l2, &p2, values, n);
+	free(num);
+	*eq = '\0';
+	char *dot = strrchr(arg, '.');
+	if (!dot || dot == arg || !dot[1])
+		return false;
+	*dot = '\0';
+	*light = arg;
+	*param = dot + 1;
+	*text = eq + 1;
+	if (numbers)
+		return true;
+	/* not numbers: a string, unless it is a number gone wrong ("1x", "1,,2", "") */
+	const char *t = *text;
+	bool numeric = !t[0] || strchr("0123456789+-.,", t[0]);
+	if (numeric && strncmp(t, "./", 2) && strncmp(t, "../", 3))
+		return false;
+	*n = 0;
+	return true;
+}
+
 int cmd_set_option(const char *cmd, const char *arg, char *copy, size_t cap, const char **light,
-		   const char **param, float values[16], uint32_t *n)
+		   const char **param, float values[16], uint32_t *n, const char **text)
 {
 	if (strlen(arg) >= cap)
 		return cmd_usage_error(cmd, "--set '%.40s...' is too long", arg);
 	memcpy(copy, arg, strlen(arg) + 1);
-	if (!cmd_parse_light_edit(copy, light, param, values, n))
+	if (!cmd_parse_light_edit_text(copy, light, param, values, n, text))
 		return cmd_usage_error(cmd, "--set needs LIGHT.PARAM=V[,V,...] with up to 16 "
-				       "numbers, not '%s'", arg);
+				       "numbers, or LIGHT.PARAM=TEXT for a string, not '%s'", arg);
 	return CMD_OK;
 }

@@ -52,7 +52,8 @@ static void usage(FILE *out)
 		"                       parameters; one value for a float (or a grey colour),\n"
 		"                       three for a colour, point or vector (points and\n"
 		"                       vectors in the light's own space, as in the RIB),\n"
-		"                       sixteen for a matrix. Repeatable. LIGHT 'imager'\n"
+		"                       sixteen for a matrix, the text for a string (a map's\n"
+		"                       name: uberlight's slidename). Repeatable. LIGHT 'imager'\n"
 		"                       edits the shot's imager shader instead (RIB Imager),\n"
 		"                       which runs on the final pixels after the resolve\n"
 		"  -o, --output FILE    The image (OpenEXR, RGBA float; default: SHOT with\n"
@@ -67,7 +68,11 @@ static void usage(FILE *out)
 		"                       shaded for it, and those shaded in batches of lights),\n"
 		"                       edit_ms (after the --set edits, levels 0 to 3 refined\n"
 		"                       in turn with the light cache warm), levels (per level:\n"
-		"                       ms, entries resolved, samples shaded, kernels run) and\n"
+		"                       ms, entries resolved, samples shaded, kernels run),\n"
+		"                       programs_at_load and programs_by_edits (GPU programs\n"
+		"                       made before the edits and by them: an edit makes none),\n"
+		"                       texture_maps and texture_map_bytes (the texture and\n"
+		"                       environment maps the lights read, in GPU memory) and\n"
 		"                       graph (the computation graph's nodes and their runs)\n"
 		"  -q, --quiet          No summary\n"
 		"  -h, --help           Show this help and exit\n"
@@ -174,17 +179,29 @@ static int preview_gpu(const char *shot, const char *output, int level,
 	struct gpu_shot_stats full = { 0 }, lv[GPU_SHOT_LEVELS];
 	memset(lv, 0, sizeof(lv));
 	ok = ok && gpu_shot_render(s, GPU_SHOT_FINAL, &full);
-	for (size_t i = 0; ok && i < nedits; i++)
-		if (!gpu_shot_set(s, edits[i].light, edits[i].param, edits[i].values,
-				  edits[i].nvalues, err, sizeof(err))) {
+	/* programs made (compiled, or read from the disk cache) before the edits */
+	unsigned hits0 = 0, built0 = 0, hits1 = 0, built1 = 0;
+	gpu_program_stats(ctx, &hits0, &built0);
+	for (size_t i = 0; ok && i < nedits; i++) {
+		const struct resolve_edit *e = &edits[i];
+		bool is_string = e->nvalues == 0 && gpu_shot_param_is_string(s, e->light, e->param);
+		if (is_string ? !gpu_shot_set_string(s, e->light, e->param, e->text, err,
+						     sizeof(err))
+			      : e->nvalues == 0 ? snprintf(err, sizeof(err), "light '%s': parameter "
+							   "'%s' needs numbers, not '%s'", e->light,
+							   e->param, e->text) >= 0
+			      : !gpu_shot_set(s, e->light, e->param, e->values, e->nvalues, err,
+					      sizeof(err))) {
 			fprintf(stderr, "relight: error: %s\n", err);
 			ok = false;
 		}
+	}
 	double edit_ms = 0;
 	for (int L = 0; ok && L < GPU_SHOT_LEVELS; L++) {
 		ok = gpu_shot_render(s, L, &lv[L]);
 		edit_ms += lv[L].ms;
 	}
+	gpu_program_stats(ctx, &hits1, &built1);
 	uint32_t w = s ? gpu_shot_width(s) : 0, h = s ? gpu_shot_height(s) : 0;
 	ok = ok && write_gpu_image(s, level, output, half);
 	if (ok && json) {
@@ -200,7 +217,12 @@ static int preview_gpu(const char *shot, const char *output, int level,
 			       "\"dispatches\": %u}", L ? ", " : "", L, lv[L].ms,
 			       (unsigned long long)lv[L].entries, (unsigned long long)lv[L].shaded,
 			       lv[L].dispatches);
-		printf("], \"output\": \"%s\", \"graph\": ", output);
+		size_t tbytes = 0;
+		uint32_t nmaps = gpu_shot_texmaps(s, &tbytes);
+		printf("], \"programs_at_load\": %u, \"programs_by_edits\": %u, \"texture_maps\": %u, "
+		       "\"texture_map_bytes\": %zu", hits0 + built0, hits1 + built1 - hits0 - built0,
+		       nmaps, tbytes);
+		printf(", \"output\": \"%s\", \"graph\": ", output);
 		graph_print_json(gpu_shot_graph(s), stdout);
 		printf("}\n");
 	} else if (ok && !quiet && nedits) {
@@ -265,7 +287,8 @@ int cmd_preview(int argc, char **argv)
 			{
 				int rc = cmd_set_option("preview", optarg, copies[nedits], MAX_EDIT_LEN,
 							&edits[nedits].light, &edits[nedits].param,
-							edits[nedits].values, &edits[nedits].nvalues);
+							edits[nedits].values, &edits[nedits].nvalues,
+							&edits[nedits].text);
 				if (rc != CMD_OK)
 					return rc;
 			}

@@ -69,7 +69,8 @@ static void usage(FILE *out)
 		"                         parameters; one value for a float (or a grey colour),\n"
 		"                         three for a colour, point or vector (points and\n"
 		"                         vectors in the light's own space, as in the RIB),\n"
-		"                         sixteen for a matrix. Repeatable (up to %d). The\n"
+		"                         sixteen for a matrix, the text for a string (a\n"
+		"                         map's name). Repeatable (up to %d). The\n"
 		"                         value replaces the one the scene gives, in every\n"
 		"                         frame, as 'relight preview --set' edits a shot;\n"
 		"                         LIGHT 'imager' edits the Imager shader (and a\n"
@@ -642,7 +643,8 @@ int cmd_render(int argc, char **argv)
 			{
 				int rc = cmd_set_option("render", optarg, copies[nedits], MAX_EDIT_LEN,
 							&edits[nedits].light, &edits[nedits].param,
-							edits[nedits].values, &edits[nedits].nvalues);
+							edits[nedits].values, &edits[nedits].nvalues,
+							&edits[nedits].text);
 				if (rc != CMD_OK)
 					return rc;
 			}

@@ -1072,6 +1072,29 @@ bool gpu_uniform_int(struct gpu_program *p, const char *name, int v)
 	return gl_check("gpu_uniform_int");
 }
 
+bool gpu_uniform_ints(struct gpu_program *p, const char *name, const int *v, int n)
+{
+	if (!v || n < 1) {
+		rl_log(RL_LOG_ERROR, "gpu_uniform_ints: no values for '%s'", name ? name : "");
+		return false;
+	}
+	const struct uniform_slot *u = uniform_lookup(p, name, __func__);
+	if (!u)
+		return false;
+	if ((u->type != GL_INT && u->type != GL_INT_VEC4) ||
+	    (u->type == GL_INT_VEC4 && n % 4)) {
+		rl_log(RL_LOG_ERROR, "gpu_uniform_ints: %d ints do not fit '%s' (GL type 0x%04x)", n,
+		       name, (unsigned)u->type);
+		return false;
+	}
+	/* the compiler may keep only the elements the program reads: set those */
+	if (u->type == GL_INT_VEC4)
+		glProgramUniform4iv(p->name, u->location, n / 4 < u->count ? n / 4 : u->count, v);
+	else
+		glProgramUniform1iv(p->name, u->location, n < u->count ? n : u->count, v);
+	return true;
+}
+
 bool gpu_uniform_mat4(struct gpu_program *p, const char *name, const float m[16])
 {
 	if (!m) {

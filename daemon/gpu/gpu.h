@@ -61,6 +61,8 @@ void gpu_program_stats(const struct gpu_ctx *ctx, unsigned *disk_hits, unsigned 
 /** Set a uniform by name (float, vec2/3/4 by @n, or arrays): false if absent. */
 bool gpu_uniform_float(struct gpu_program *p, const char *name, const float *v, int n);
 bool gpu_uniform_int(struct gpu_program *p, const char *name, int v);
+/** Set an int or ivec4 uniform or array from @n ints (the elements the program keeps): false if absent. */
+bool gpu_uniform_ints(struct gpu_program *p, const char *name, const int *v, int n);
 bool gpu_uniform_mat4(struct gpu_program *p, const char *name, const float m[16]);
 
 /** A buffer of @bytes bytes, filled from @data when not NULL. */

@@ -39,6 +39,7 @@
 #include "shotmeta.h"
 #include "builtin.h"
 #include "spec.h"
+#include "texmap.h"
 #include "texture.h"
 
 #include <cjson/cJSON.h>
@@ -165,6 +166,7 @@ struct gpu_shot {
 	char *path;
 	cJSON *meta;
 	struct reyes_texsys *tex;
+	struct gpu_texmaps *texmaps;   /* the texture and environment maps lights read */
 	uint32_t width, height;
 	float w2c[16], c2w[16];
 	uint64_t nsamples;
@@ -514,10 +516,62 @@ static void count_dispatch(struct gpu_shot *s, uint64_t shaded)
 	}
 }
 
+/* The map a texture() or environment() site of light shader @lp reads with parameters @st. */
+static const char *site_map_name(const struct sl_program *lp, const struct lstate *st,
+				 const struct sl_glsl_map_site *site)
+{
+	if (!site->param)
+		return site->name ? site->name : "";
+	uint32_t si = 0;
+	for (uint32_t p = 0; p < lp->nparams; p++) {
+		if (lp->regs[lp->params[p].reg].type != SL_TYPE_STRING)
+			continue;
+		if (!strcmp(lp->params[p].name, site->param))
+			return si < st->ns ? st->s[si] : "";
+		si++;
+	}
+	return "";
+}
+
+/* What is left of the shot's GPU memory budget. */
+static size_t budget_room(const struct gpu_shot *s)
+{
+	size_t used = gpu_shot_bytes(s);
+	return used < s->budget ? s->budget - used : 0;
+}
+
+/*
+ * Bind the texture and environment maps of kernel @k for light @L with
+ * parameters @st (NULL: no light, every lookup gives the fill), at the units
+ * after the shadow maps'. A map a parameter names is loaded on first use;
+ * swapping one is a binding, never a compile.
+ */
+static bool bind_texmaps(struct gpu_shot *s, const struct kernel *k, const struct light *L,
+			 const struct lstate *st, struct gpu_binding *b, uint32_t *nb)
+{
+	for (uint32_t i = 0; i < k->layout.nmaps; i++) {
+		const struct sl_glsl_map_site *site = &k->layout.maps[i];
+		const struct gpu_texmap *m = NULL;
+		if (L && st) {
+			char who[300];
+			snprintf(who, sizeof(who), "%s: light '%s'", s->path, L->name);
+			m = gpu_texmaps_get(s->texmaps,
+					    site_map_name(s->lshaders[L->shader].prog, st, site), who,
+					    budget_room(s));
+		}
+		b[*nb] = (struct gpu_binding){ 0, false, s->zero, false };
+		if (!gpu_texmap_bind(m, SL_GLSL_SHADOW_UNIT0 + k->layout.nshadows + i, &b[*nb]))
+			return fail(s, "cannot bind the texture map of a kernel");
+		(*nb)++;
+	}
+	return true;
+}
+
 /* Bind the shadow maps of kernel @k for light @L (NULL: the base kernel),
- * or none when not @maps (every lookup gives the fill: no shadow). */
+ * or none when not @maps (every lookup gives the fill: no shadow), then its
+ * texture maps for parameters @st. */
 static bool bind_maps(struct gpu_shot *s, const struct kernel *k, const struct light *L,
-		      bool maps, struct gpu_binding *b, uint32_t *nb)
+		      const struct lstate *st, bool maps, struct gpu_binding *b, uint32_t *nb)
 {
 	for (uint32_t i = 0; i < k->layout.nshadows; i++) {
 		const struct gpu_shadow_map *m = maps && L && L->maps ? L->maps[i] : NULL;
@@ -529,14 +583,14 @@ static bool bind_maps(struct gpu_shot *s, const struct kernel *k, const struct l
 		b[*nb].unit = SL_GLSL_SHADOW_UNIT0 + i;
 		(*nb)++;
 	}
-	return true;
+	return bind_texmaps(s, k, L, st, b, nb);
 }
 
-/* Bind the shadow maps of kernel @k for light @L (NULL: the base kernel). */
+/* Bind the maps of kernel @k for light @L with parameters @st (NULL: the base kernel). */
 static bool bind_shadows(struct gpu_shot *s, const struct kernel *k, const struct light *L,
-			 struct gpu_binding *b, uint32_t *nb)
+			 const struct lstate *st, struct gpu_binding *b, uint32_t *nb)
 {
-	return bind_maps(s, k, L, true, b, nb);
+	return bind_maps(s, k, L, st, true, b, nb);
 }
 
 /* Before dispatching kernel @k over run @ru of @sf: its paramset's uniforms and first row. */
@@ -571,7 +625,7 @@ static bool shade_pass(struct gpu_shot *s, struct light *L, const struct lstate 
 		uint32_t nb = 0;
 		b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 		b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
-		if (!bind_maps(s, k, L, maps, b, &nb))
+		if (!bind_maps(s, k, L, st, maps, b, &nb))
 			return false;
 		uint32_t ostride = k->layout.out_stride;
 		for (size_t r = 0; r < sf->runs[band].len; r++) {
@@ -641,7 +695,8 @@ static bool batchable(const struct gpu_shot *s, const struct light *L)
 	if (!s->nsurfaces || L->nmaps)
 		return false;
 	for (uint32_t i = 0; i < s->nsurfaces; i++)
-		if (s->surfaces[i].nrows && !s->surfaces[i].bk[L->shader].prog)
+		if (s->surfaces[i].nrows && (!s->surfaces[i].bk[L->shader].prog ||
+					     s->surfaces[i].lk[L->shader].layout.nmaps))
 			return false;
 	/* (object ids stop at nobjects - 1; the last float is padding) */
 	for (uint32_t o = 0; o < s->nobjects; o++)
@@ -1033,7 +1088,8 @@ static struct gpu_buffer *buffer(struct gpu_shot *s, size_t bytes, const void *d
 }
 
 /*
- * The GPU reads no texture or environment file: warn, naming the light and
+ * Without map sites in its kernels (no derivative stencils: a shot baked
+ * without light derivatives) the GPU reads no texture or environment file: warn, naming the light and
  * the file, when a light's texture() or environment() would read one (a
  * string parameter that names it, such as uberlight's slide, set to a file):
  * the preview then differs from the final frame where that light falls.
@@ -1076,6 +1132,60 @@ static void warn_textures(struct gpu_shot *s, const struct light *L)
 			si++;
 		}
 	}
+}
+
+/* Does some kernel of light shader @k read texture or environment maps? */
+static bool reads_texmaps(const struct gpu_shot *s, uint32_t k)
+{
+	for (uint32_t i = 0; i < s->nsurfaces; i++)
+		if (s->surfaces[i].lk && s->surfaces[i].lk[k].layout.nmaps)
+			return true;
+	return false;
+}
+
+/*
+ * Load the maps the lights' parameters name when the shot loads, so that
+ * a missing one is reported then and the first frame pays no upload; warn
+ * about lights whose kernels cannot read theirs.
+ */
+static void load_texmaps(struct gpu_shot *s)
+{
+	for (uint32_t i = 0; i < s->nlights; i++) {
+		struct light *L = &s->lights[i];
+		if (!reads_texmaps(s, L->shader)) {
+			warn_textures(s, L);
+			continue;
+		}
+		char who[300];
+		snprintf(who, sizeof(who), "%s: light '%s'", s->path, L->name);
+		for (uint32_t j = 0; j < s->nsurfaces; j++) {
+			const struct kernel *k = &s->surfaces[j].lk[L->shader];
+			for (uint32_t m = 0; m < k->layout.nmaps; m++)
+				gpu_texmaps_get(s->texmaps, site_map_name(s->lshaders[L->shader].prog,
+									  &L->cur, &k->layout.maps[m]),
+						who, budget_room(s));
+		}
+	}
+}
+
+/*
+ * Free the maps nothing reads any more: not named by a light's parameters
+ * nor by what the light cache holds of a light (which is shaded again with
+ * those to take it out).
+ */
+static void sweep_texmaps(struct gpu_shot *s)
+{
+	RL_VEC(const char *) names = { 0 };
+	for (uint32_t i = 0; i < s->nlights; i++) {
+		const struct light *L = &s->lights[i];
+		for (uint32_t k = 0; k < L->cur.ns; k++)
+			rl_vec_push(names, L->cur.s[k]);
+		for (int b = 0; b < NBANDS; b++)
+			for (uint32_t k = 0; s->cached[b] && k < s->cached[b][i].ns; k++)
+				rl_vec_push(names, s->cached[b][i].s[k]);
+	}
+	gpu_texmaps_keep_only(s->texmaps, names.data, (uint32_t)names.len);
+	rl_vec_free(names);
 }
 
 static bool load_lights(struct gpu_shot *s)
@@ -1122,7 +1232,6 @@ static bool load_lights(struct gpu_shot *s)
 			return fail(s, "light '%s': its parameter defaults failed", name);
 		L->frozen = true;
 		L->shadow_density = 1.0f;
-		warn_textures(s, L);
 		L->node = graph_add(s->graph, name, GRAPH_PARAMS, NULL, NULL);
 	}
 	return true;
@@ -1244,7 +1353,7 @@ static bool load_surface(struct gpu_shot *s, const struct shot_file *f, uint32_t
 		uint32_t users = 0;
 		for (uint32_t i = 0; i < s->nlights; i++)
 			users += s->lights[i].shader == k;
-		if (users >= 2 && !sf->lk[k].layout.nshadows &&
+		if (users >= 2 && !sf->lk[k].layout.nshadows && !sf->lk[k].layout.nmaps &&
 		    !make_kernel(s, sf, s->lshaders[k].prog, &sf->bk[k], steps, true)) {
 			ok = false;
 		}
@@ -1613,7 +1722,7 @@ static bool warm_up(struct gpu_shot *s, int only)
 			uint32_t nb = 0;
 			b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 			b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
-			if (!bind_shadows(s, kk, NULL, b, &nb))
+			if (!bind_shadows(s, kk, NULL, NULL, b, &nb))
 				return false;
 			if (k > s->nlshaders) {
 				/* a batch: no light counts, so the cache keeps its value */
@@ -1805,7 +1914,8 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	if (ok) {
 		s->tex = reyes_texsys_create(opts && opts->texture_path ? opts->texture_path : ".",
 					     s->c2w, s->diag);
-		ok = load_lights(s);
+		s->texmaps = gpu_texmaps_create(ctx, s->tex, s->diag);
+		ok = s->texmaps && load_lights(s);
 	}
 	s->accumulate = ok ? gpu_program(ctx, accumulate_src, s->diag) : NULL;
 	s->accumulate_d = ok ? gpu_program(ctx, accumulate_d_src, s->diag) : NULL;
@@ -1884,6 +1994,8 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 		s->cached[b] = rl_xcalloc(s->nlights + 1, sizeof(struct lstate));
 	ok = ok && load_imager(s);
 	ok = ok && build_graph(s);
+	if (ok)
+		load_texmaps(s);
 	ok = ok && warm_up(s, -1);
 	for (uint32_t i = 0; ok && i < s->nsurfaces; i++)
 		check_linear(s, &s->surfaces[i]);
@@ -1976,6 +2088,7 @@ void gpu_shot_close(struct gpu_shot *s)
 	gpu_buffer_destroy(s->zero);
 	gpu_buffer_destroy(s->px8);
 	gpu_buffer_destroy(s->px16);
+	gpu_texmaps_destroy(s->texmaps);
 	reyes_texsys_destroy(s->tex);
 	graph_destroy(s->graph);
 	cJSON_Delete(s->meta);
@@ -1998,7 +2111,7 @@ uint32_t gpu_shot_height(const struct gpu_shot *s)
 
 size_t gpu_shot_bytes(const struct gpu_shot *s)
 {
-	size_t b = s->bytes;
+	size_t b = s->bytes + gpu_texmaps_bytes(s->texmaps);
 	for (uint32_t i = 0; i < s->nlights; i++)
 		for (uint32_t m = 0; m < s->lights[i].nmaps; m++)
 			b += s->lights[i].maps[m] ? gpu_shadow_map_bytes(s->lights[i].maps[m]) : 0;
@@ -2118,6 +2231,83 @@ bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
 	editing(s, L);
 	touched(s, L);
 	return true;
+}
+
+bool gpu_shot_param_is_string(const struct gpu_shot *s, const char *light, const char *param)
+{
+	int i = gpu_shot_find_light(s, light);
+	if (i < 0 || !param)
+		return false;
+	const struct sl_program *lp = s->lshaders[s->lights[i].shader].prog;
+	int k = sl_program_find_param(lp, param);
+	return k >= 0 && !lp->params[k].output && lp->params[k].type.base == SL_TYPE_STRING &&
+	       lp->params[k].type.arraylen < 0;
+}
+
+bool gpu_shot_set_string(struct gpu_shot *s, const char *light, const char *param,
+			 const char *value, char *err, size_t errlen)
+{
+	struct light *L = find(s, light, err, errlen);
+	if (!L)
+		return false;
+	const struct sl_program *lp = s->lshaders[L->shader].prog;
+	int k = param ? sl_program_find_param(lp, param) : -1;
+	if (k < 0 || lp->params[k].output) {
+		errorf(err, errlen, "light '%s' (shader '%s') has no parameter '%s'", L->name,
+		       lp->name, param ? param : "");
+		return false;
+	}
+	if (!gpu_shot_param_is_string(s, light, param)) {
+		errorf(err, errlen, "light '%s': parameter '%s' is a %s%s, not a string", L->name,
+		       param, sl_basetype_name(lp->params[k].type.base),
+		       lp->params[k].type.arraylen >= 0 ? " array" : "");
+		return false;
+	}
+	if (!value || strlen(value) > 4095) {
+		errorf(err, errlen, "light '%s': parameter '%s' needs a string of at most 4095 bytes",
+		       L->name, param);
+		return false;
+	}
+	if (!sl_exec_set_param_string(L->init, param, value)) {
+		errorf(err, errlen, "light '%s': parameter '%s' cannot be set", L->name, param);
+		return false;
+	}
+	struct lstate next = { 0 };
+	lstate_copy(&next, &L->cur);
+	if (!eval_params(L->init, lp, L->to_camera, s->w2c, &next)) {
+		lstate_free(&next);
+		errorf(err, errlen, "light '%s': its parameter defaults failed", L->name);
+		return false;
+	}
+	lstate_free(&L->cur);
+	L->cur = next;
+	editing(s, L);
+	touched(s, L);
+	return true;
+}
+
+char *gpu_shot_get_string(const struct gpu_shot *s, const char *light, const char *param)
+{
+	if (!gpu_shot_param_is_string(s, light, param))
+		return NULL;
+	const struct light *L = &s->lights[gpu_shot_find_light(s, light)];
+	const struct sl_program *lp = s->lshaders[L->shader].prog;
+	uint32_t si = 0;
+	for (uint32_t p = 0; p < lp->nparams; p++) {
+		if (lp->regs[lp->params[p].reg].type != SL_TYPE_STRING)
+			continue;
+		if (!strcmp(lp->params[p].name, param))
+			return si < L->cur.ns ? rl_xstrdup(L->cur.s[si]) : NULL;
+		si++;
+	}
+	return NULL;
+}
+
+uint32_t gpu_shot_texmaps(const struct gpu_shot *s, size_t *bytes)
+{
+	if (bytes)
+		*bytes = gpu_texmaps_bytes(s->texmaps);
+	return gpu_texmaps_count(s->texmaps);
 }
 
 bool gpu_shot_get(const struct gpu_shot *s, const char *light, const char *param, float out[16],
@@ -2332,6 +2522,7 @@ bool gpu_shot_render(struct gpu_shot *s, int level, struct gpu_shot_stats *st)
 	s->stats = st;
 	bool ok = graph_pull(s->graph, level_node(s, level)) && gpu_finish(s->ctx);
 	s->stats = NULL;
+	sweep_texmaps(s);
 	st->entries = s->level_entries[level];
 	st->ms = rl_now_ms() - t0;
 	return ok;
@@ -2563,7 +2754,7 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 		uint32_t nb = 0;
 		b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 		b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
-		if (!bind_shadows(s, k, L, b, &nb))
+		if (!bind_shadows(s, k, L, &L->cur, b, &nb))
 			return false;
 		double best = 1e30, base = 1e30;
 		for (int r = 0; r < 6; r++) {
@@ -2574,7 +2765,7 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 			if (kk == &sf->base) {
 				b0[n0++] = (struct gpu_binding){ 0, false, sf->records, true };
 				b0[n0++] = (struct gpu_binding){ 1, true, s->scratch };
-				if (!bind_shadows(s, kk, NULL, b0, &n0))
+				if (!bind_shadows(s, kk, NULL, NULL, b0, &n0))
 					return false;
 				gpu_uniform_int(kk->prog, "u_first", 0);
 				bb = b0;

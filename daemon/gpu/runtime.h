@@ -93,6 +93,25 @@ int gpu_shot_find_light(const struct gpu_shot *s, const char *name);
 bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
 		  const float *values, uint32_t n, char *err, size_t errlen);
 
+/**
+ * Set string parameter @param of light @light to @value, such as the map
+ * uberlight's "slidename" names: a map that texture() or environment()
+ * reads is loaded if it is new and bound, never compiled for. Refused, with
+ * the reason in @err and nothing changed, for an unknown light or
+ * parameter, a parameter that is not a string, or a value over 4095 bytes.
+ */
+bool gpu_shot_set_string(struct gpu_shot *s, const char *light, const char *param,
+			 const char *value, char *err, size_t errlen);
+
+/** The value of string parameter @param of light @light (free() it), or NULL if none. */
+char *gpu_shot_get_string(const struct gpu_shot *s, const char *light, const char *param);
+
+/** Is @param a string parameter of light @light? */
+bool gpu_shot_param_is_string(const struct gpu_shot *s, const char *light, const char *param);
+
+/** How many texture and environment maps the shot holds in GPU memory, and their bytes. */
+uint32_t gpu_shot_texmaps(const struct gpu_shot *s, size_t *bytes);
+
 /** The current value of a light's parameter (@out: 16 floats); false if none. */
 bool gpu_shot_get(const struct gpu_shot *s, const char *light, const char *param, float out[16],
 		  uint32_t *n);

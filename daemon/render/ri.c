@@ -1912,10 +1912,33 @@ static bool apply_light_edit(struct ri *ri, const struct rib_request *r,
 	}
 	const struct sl_param *sp = &prog->params[k];
 	uint32_t nc = (uint32_t)sl_type_ncomp(sp->type.base);
+	uint32_t i = 0;
+	while (i < sh->nparams && strcmp(vals[i].name, sp->name) != 0)
+		i++;
+	if (sp->type.base == SL_TYPE_STRING && sp->type.arraylen < 0 && e->nvalues == 0 &&
+	    e->text) {
+		/* a string: the value as written, a map's name say */
+		const char **sv = rl_arena_alloc(reyes_ri_cur_arena(ri), sizeof(char *));
+		size_t len = strlen(e->text) + 1;
+		char *copy = rl_arena_alloc(reyes_ri_cur_arena(ri), len);
+		memcpy(copy, e->text, len);
+		sv[0] = copy;
+		vals[i] = (struct reyes_param_value){.name = sp->name, .type = sp->type.base,
+						     .nvalues = 1, .strings = sv};
+		if (i == sh->nparams)
+			sh->nparams++;
+		return true;
+	}
+	if (e->nvalues == 0) {
+		reyes_ri_err(ri, r->loc, "--set %s.%s: parameter '%s' of shader '%s' is a %s and "
+			     "needs numbers, not '%s'", e->light, e->param, e->param, sh->name,
+			     sl_basetype_name(sp->type.base), e->text ? e->text : "");
+		return false;
+	}
 	if (sp->type.base == SL_TYPE_STRING || sp->type.arraylen >= 0 || nc == 0) {
 		reyes_ri_err(ri, r->loc, "--set %s.%s: parameter '%s' of shader '%s' is a %s%s; only "
-			     "float, colour, point, vector, normal and matrix parameters can be "
-			     "edited", e->light, e->param, e->param, sh->name,
+			     "float, colour, point, vector, normal and matrix parameters take "
+			     "numbers (a string takes its text, an array nothing)", e->light, e->param, e->param, sh->name,
 			     sl_basetype_name(sp->type.base), sp->type.arraylen >= 0 ? " array" : "");
 		return false;
 	}
@@ -1936,9 +1959,6 @@ static bool apply_light_edit(struct ri *ri, const struct rib_request *r,
 			return false;
 		}
 	}
-	uint32_t i = 0;
-	while (i < sh->nparams && strcmp(vals[i].name, sp->name) != 0)
-		i++;
 	vals[i] = (struct reyes_param_value){.name = sp->name, .type = sp->type.base,
 					     .nvalues = nc, .values = f};
 	if (i == sh->nparams)

@@ -26,7 +26,8 @@ struct reyes_light_edit {
 	const char *light;             /* the RIB handle: "3", "key" */
 	const char *param;
 	float values[16];
-	uint32_t nvalues;
+	uint32_t nvalues;              /* 0: the value is @text, for a string parameter */
+	const char *text;              /* the value as written */
 };
 
 /** What a read reported (struct reyes_ri_opts's counts). */

@@ -1217,6 +1217,39 @@ bool reyes_tex_shadow_map(struct reyes_texsys *ts, const char *name,
 	return true;
 }
 
+bool reyes_tex_map(struct reyes_texsys *ts, const char *name, struct reyes_tex_map_info *out)
+{
+	_Static_assert((int)WRAP_BLACK == (int)REYES_WRAP_BLACK &&
+		       (int)WRAP_CLAMP == (int)REYES_WRAP_CLAMP &&
+		       (int)WRAP_PERIODIC == (int)REYES_WRAP_PERIODIC &&
+		       (int)WRAP_MIRROR == (int)REYES_WRAP_MIRROR, "wrap modes in the same order");
+	if (!out)
+		return false;
+	memset(out, 0, sizeof(*out));
+	const struct tex *tx = get(ts, name);
+	if (!tx || !tx->ok)
+		return false;
+	out->levels = tx->f.levels;
+	out->nlevels = tx->f.nlevels;
+	out->nchannels = tx->nch;
+	out->swrap = (enum reyes_wrap)tx->swrap;
+	out->twrap = (enum reyes_wrap)tx->twrap;
+	out->cube = tx->f.cube;
+	out->fov = tx->f.fov;
+	if (tx->f.cube) {
+		/* cube_lookup's top: the last level that holds six faces */
+		uint32_t top = 0;
+		while (top + 1 < tx->f.nlevels && cube_face_size(&tx->f.levels[top + 1]) > 0)
+			top++;
+		out->nlevels = top + 1;
+	}
+	if (out->nlevels > sizeof(out->face_size) / sizeof(out->face_size[0]))
+		out->nlevels = sizeof(out->face_size) / sizeof(out->face_size[0]);
+	for (uint32_t l = 0; l < out->nlevels; l++)
+		out->face_size[l] = tx->f.cube ? cube_face_size(&tx->f.levels[l]) : 0;
+	return true;
+}
+
 static bool serve_texture(void *user, const struct sl_tex_lookup *q)
 {
 	return reyes_tex_texture(((struct sl_lighthost *)user)->owner, q);

@@ -130,4 +130,28 @@ struct reyes_shadow_map_info {
 bool reyes_tex_shadow_map(struct reyes_texsys *ts, const char *name,
 			  struct reyes_shadow_map_info *out);
 
+/** Wrap modes as struct reyes_tex_map_info gives them. */
+enum reyes_wrap { REYES_WRAP_BLACK, REYES_WRAP_CLAMP, REYES_WRAP_PERIODIC, REYES_WRAP_MIRROR };
+
+/** A texture or environment map as texture() and environment() read it (see reyes_tex_map). */
+struct reyes_tex_map_info {
+	/* Levels 0 .. nlevels - 1 as lookups read them (a cube map: those that
+	 * still hold six faces), channels reordered R, G, B, A first; valid
+	 * while the texsys lives. */
+	const struct reyes_image *levels;
+	uint32_t nlevels;
+	uint32_t nchannels;
+	enum reyes_wrap swrap, twrap;   /* texture()'s; environment() wraps periodic, clamp */
+	bool cube;                      /* environment(): cube faces, else latitude-longitude */
+	float fov;                      /* a cube map's field of view in degrees */
+	uint32_t face_size[32];         /* a cube map: per level, the size of a face */
+};
+
+/**
+ * Map @name as texture() and environment() find it through @ts (loaded on
+ * first use, counted as unread when it cannot be). False when it is
+ * missing or unreadable: lookups then give the fill.
+ */
+bool reyes_tex_map(struct reyes_texsys *ts, const char *name, struct reyes_tex_map_info *out);
+
 #endif

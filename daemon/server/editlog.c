@@ -58,7 +58,8 @@ struct srv_job *srv_job_from(const struct proto_request *r, uint64_t client, dou
 		for (uint32_t k = 0; ok && k < r->nparams; k++) {
 			j->params[k] = r->params[k];
 			j->params[k].name = strdup(r->params[k].name);
-			ok = j->params[k].name != NULL;
+			j->params[k].text = r->params[k].text ? strdup(r->params[k].text) : NULL;
+			ok = j->params[k].name != NULL && (!r->params[k].text || j->params[k].text);
 			j->nparams = k + 1;
 		}
 	}
@@ -75,8 +76,10 @@ void srv_job_free(struct srv_job *j)
 		return;
 	free(j->light);
 	free(j->shader);
-	for (uint32_t k = 0; k < j->nparams; k++)
+	for (uint32_t k = 0; k < j->nparams; k++) {
 		free((char *)j->params[k].name);
+		free((char *)j->params[k].text);
+	}
 	free(j->params);
 	free(j);
 }
@@ -87,7 +90,8 @@ size_t srv_job_bytes(const struct srv_job *j)
 	n += j->light ? strlen(j->light) + 1 : 0;
 	n += j->shader ? strlen(j->shader) + 1 : 0;
 	for (uint32_t k = 0; k < j->nparams; k++)
-		n += strlen(j->params[k].name) + 1;
+		n += strlen(j->params[k].name) + 1 +
+		     (j->params[k].text ? strlen(j->params[k].text) + 1 : 0);
 	return n;
 }
 
@@ -111,8 +115,10 @@ static bool drop_params(struct srv_job *old, const struct srv_job *newer)
 {
 	uint32_t kept = 0;
 	for (uint32_t k = 0; k < old->nparams; k++) {
-		if (has_param(newer, old->params[k].name))
+		if (has_param(newer, old->params[k].name)) {
 			free((char *)old->params[k].name);
+			free((char *)old->params[k].text);
+		}
 		else
 			old->params[kept++] = old->params[k];
 	}

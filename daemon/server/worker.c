@@ -276,34 +276,55 @@ static bool param_value(struct gpu_shot *g, const char *light, const char *name,
 	return false;
 }
 
+/* Set one parameter: a string (a map's name) or numbers. */
+static bool set_one(struct gpu_shot *g, const char *light, const struct proto_param *p, char *err,
+		    size_t errlen)
+{
+	if (p->text)
+		return gpu_shot_set_string(g, light, p->name, p->text, err, errlen);
+	return gpu_shot_set(g, light, p->name, p->values, p->n, err, errlen);
+}
+
 static bool apply_set(struct gpu_shot *g, const struct srv_job *j, char *err, size_t errlen)
 {
 	/* All or nothing: a refused parameter puts back those set before it. */
 	float old[64][16];
 	uint32_t oldn[64];
+	char *olds[64];
 	uint32_t n = j->nparams < 64 ? j->nparams : 64;
-	for (uint32_t k = 0; k < n; k++) {
-		if (!param_value(g, j->light, j->params[k].name, old[k], &oldn[k]))
+	bool ok = true;
+	uint32_t k = 0;
+	for (; k < n; k++) {
+		olds[k] = gpu_shot_get_string(g, j->light, j->params[k].name);
+		if (olds[k] || !param_value(g, j->light, j->params[k].name, old[k], &oldn[k]))
 			oldn[k] = 0;
-		if (!gpu_shot_set(g, j->light, j->params[k].name, j->params[k].values,
-				  j->params[k].n, err, errlen)) {
-			for (uint32_t b = 0; b < k; b++) {
-				char e2[64];
-				if (oldn[b])
-					gpu_shot_set(g, j->light, j->params[b].name, old[b], oldn[b],
-						     e2, sizeof(e2));
-			}
-			return false;
+		if (!set_one(g, j->light, &j->params[k], err, errlen)) {
+			ok = false;
+			break;
 		}
 	}
-	return true;
+	for (uint32_t b = 0; b < k && !ok; b++) {
+		char e2[64];
+		if (olds[b])
+			gpu_shot_set_string(g, j->light, j->params[b].name, olds[b], e2, sizeof(e2));
+		else if (oldn[b])
+			gpu_shot_set(g, j->light, j->params[b].name, old[b], oldn[b], e2, sizeof(e2));
+	}
+	for (uint32_t b = 0; b < k + (ok ? 0 : 1) && b < n; b++)
+		free(olds[b]);
+	return ok;
 }
 
 /* The code of a refused parameter (the light was checked already): a name the
  * shader lacks, or a value it does not take. */
 static enum proto_error_code code_of(const char *err)
 {
-	return strstr(err, "has no parameter") ? PROTO_E_UNKNOWN_PARAM : PROTO_E_RANGE;
+	if (strstr(err, "has no parameter"))
+		return PROTO_E_UNKNOWN_PARAM;
+	/* a string for a number, or numbers for a string */
+	if (strstr(err, "not a string") || strstr(err, "is a string"))
+		return PROTO_E_TYPE;
+	return PROTO_E_RANGE;
 }
 
 static bool apply_job(struct srv *s, struct srv_shot *sh, const struct srv_job *j, char *err,
@@ -955,7 +976,11 @@ static void *worker_main(void *arg)
 			  read_level(sh->gpu, level, &im, need8, need16);
 		if (ok)
 			level_build(s, sh, &im, need8, need16, edit, level, st.ms, t0, &lf);
+		/* maps a swapped slide loaded, or freed, change what the shot holds */
+		size_t bytes = gpu_shot_bytes(sh->gpu);
 		pthread_mutex_lock(&s->lock);
+		atomic_fetch_add(&s->metrics.gpu_bytes, (int_fast64_t)bytes - (int_fast64_t)sh->bytes);
+		sh->bytes = bytes;
 		s->worker_beat = srv_now();
 		if (!ok) {
 			diag_log(sh, RL_LOG_ERROR);

@@ -292,7 +292,8 @@ bool shot_meta_check_edit(const struct sl_program *light, const char *who, const
 	uint32_t nc = (uint32_t)sl_type_ncomp(ty->base);
 	if (ty->base == SL_TYPE_STRING || ty->arraylen >= 0 || nc == 0) {
 		snprintf(err, errlen, "%s: parameter '%s' is a %s%s; only float, colour, "
-			 "point, vector, normal and matrix parameters can be edited", who, param,
+			 "point, vector, normal and matrix parameters take numbers (a string "
+			 "takes its text, an array nothing)", who, param,
 			 sl_basetype_name(ty->base), ty->arraylen >= 0 ? " array" : "");
 		return false;
 	}

@@ -678,8 +678,9 @@ static bool prepare(struct glsl_gen *g, struct glsl_prog *p, const struct sl_pro
 		p->mdecl = rl_arena_alloc(g->arena, nr + 1);
 		p->copy_of = rl_arena_alloc(g->arena, (nr + 1) * sizeof(*p->copy_of));
 		p->site = rl_arena_alloc(g->arena, (n + 1) * sizeof(*p->site));
+		p->msite = rl_arena_alloc(g->arena, (n + 1) * sizeof(*p->msite));
 		for (uint32_t i = 0; i <= n; i++)
-			p->site[i] = -1;
+			p->site[i] = p->msite[i] = -1;
 	}
 	for (uint32_t i = 0; i <= n; i++) {
 		p->target[i] = -1;
@@ -1781,16 +1782,14 @@ static bool replayable(const struct sl_program *prog, const struct sl_insn *in)
 
 /*
  * The registers whose derivatives @in takes on the GPU (up to 2); returns
- * how many. The interpreter's (spec.h), less texture() and environment(),
- * which read no file on the GPU (the fill), and shadow() other than by one
- * lookup point.
+ * how many. The interpreter's (spec.h), less shadow() other than by one
+ * lookup point. (texture() and environment() of named maps filter on the
+ * stencil as the interpreter does.)
  */
 static int deriv_operands(const struct sl_program *prog, const struct sl_insn *in, int32_t r[2])
 {
 	if (in->op == SL_OP_CALL && in->bi >= 0 && (uint32_t)in->bi < sl_nbuiltins) {
 		int id = sl_builtins[in->bi].id;
-		if (id == SL_BI_TEXTURE || id == SL_BI_ENVIRONMENT)
-			return 0;
 		if (id == SL_BI_SHADOW && (in->nargs < 3 || numeric_args(prog, in, 2) != 1))
 			return 0;
 	}
@@ -1987,6 +1986,51 @@ static void emit_moved(struct glsl_gen *g, const struct sl_insn *in)
 	}
 }
 
+/*
+ * The map a lookup names: a string parameter of its program (through
+ * copies) in *param, or a constant in *name. False (an error) for neither.
+ */
+static bool site_name(struct glsl_gen *g, const struct sl_insn *in, const char **param,
+		      const char **name)
+{
+	struct glsl_prog *p = g->cur;
+	const struct sl_program *prog = p->prog;
+	*param = NULL;
+	int32_t r = in->args[0];
+	for (int hop = 0; hop < 16 && r >= 0 && !*param; hop++) {
+		for (uint32_t k = 0; k < prog->nparams && !*param; k++)
+			if (prog->params[k].reg == r && prog->regs[r].type == SL_TYPE_STRING &&
+			    !prog->regs[r].arraylen)
+				*param = prog->params[k].name;
+		r = p->copy_of[r];
+	}
+	*name = *param ? NULL : sl_glsl_cstr(g, in->args[0]);
+	if (*param || *name)
+		return true;
+	sl_glsl_error(g, in, "%s map names must be string parameters or constant strings on the "
+		      "GPU", sl_builtins[in->bi].name);
+	return false;
+}
+
+int sl_glsl_map_site(struct glsl_gen *g, const struct sl_insn *in, enum sl_glsl_map_kind kind)
+{
+	struct glsl_prog *p = g->cur;
+	if (!p->msite)
+		return -1;
+	uint32_t pc = (uint32_t)(in - p->prog->code);
+	if (p->msite[pc] >= 0)
+		return p->msite[pc];
+	const char *param, *name;
+	if (!site_name(g, in, &param, &name))
+		return -1;
+	uint32_t k = (uint32_t)g->msites.len;
+	struct sl_glsl_map_site site = { p->light, param, name, kind };
+	rl_vec_push(g->msites, site);
+	p->msite[pc] = (int32_t)k;
+	/* the sampler's declaration, with its unit, comes when the shadow sites are all known */
+	return (int)k;
+}
+
 int sl_glsl_shadow_site(struct glsl_gen *g, const struct sl_insn *in)
 {
 	struct glsl_prog *p = g->cur;
@@ -1996,22 +2040,9 @@ int sl_glsl_shadow_site(struct glsl_gen *g, const struct sl_insn *in)
 	uint32_t pc = (uint32_t)(in - prog->code);
 	if (p->site[pc] >= 0)
 		return p->site[pc];
-	/* The map's name: a string parameter (through copies), or a constant. */
-	const char *param = NULL;
-	int32_t r = in->args[0];
-	for (int hop = 0; hop < 16 && r >= 0 && !param; hop++) {
-		for (uint32_t k = 0; k < prog->nparams && !param; k++)
-			if (prog->params[k].reg == r && prog->regs[r].type == SL_TYPE_STRING &&
-			    !prog->regs[r].arraylen)
-				param = prog->params[k].name;
-		r = p->copy_of[r];
-	}
-	const char *name = param ? NULL : sl_glsl_cstr(g, in->args[0]);
-	if (!param && !name) {
-		sl_glsl_error(g, in, "shadow map names must be string parameters or constant strings "
-			      "on the GPU");
+	const char *param, *name;
+	if (!site_name(g, in, &param, &name))
 		return -1;
-	}
 	uint32_t k = (uint32_t)g->sites.len;
 	struct sl_glsl_shadow_site site = { p->light, param, name };
 	rl_vec_push(g->sites, site);
@@ -2244,6 +2275,38 @@ static void fill_sites(struct glsl_gen *g, struct sl_glsl_layout *layout)
 	layout->nshadows = (uint32_t)n;
 }
 
+/* The map sites (layout->maps owns their strings) and their samplers' units, after the shadow sites'. */
+static void fill_map_sites(struct glsl_gen *g, struct sl_glsl_layout *layout)
+{
+	size_t n = g->msites.len, chars = 0;
+	if (!n)
+		return;
+	for (size_t i = 0; i < n; i++) {
+		const struct sl_glsl_map_site *st = &g->msites.data[i];
+		chars += (st->param ? strlen(st->param) + 1 : 0) + (st->name ? strlen(st->name) + 1 : 0);
+		rl_strbuf_printf(&g->sec[GS_UNIFORMS],
+				 "layout(binding = %u) uniform samplerBuffer u_map%zu;\n",
+				 SL_GLSL_SHADOW_UNIT0 + (unsigned)g->sites.len + (unsigned)i, i);
+	}
+	char *block = rl_xmalloc(n * sizeof(struct sl_glsl_map_site) + chars + 1);
+	struct sl_glsl_map_site *tab = (struct sl_glsl_map_site *)(void *)block;
+	char *c = block + n * sizeof(struct sl_glsl_map_site);
+	for (size_t i = 0; i < n; i++) {
+		tab[i] = g->msites.data[i];
+		const char **fields[2] = { &tab[i].param, &tab[i].name };
+		for (int f = 0; f < 2; f++) {
+			if (!*fields[f])
+				continue;
+			size_t len = strlen(*fields[f]) + 1;
+			memcpy(c, *fields[f], len);
+			*fields[f] = c;
+			c += len;
+		}
+	}
+	layout->maps = tab;
+	layout->nmaps = (uint32_t)n;
+}
+
 static const char prelude[] =
 	"#version 430 core\n"
 	"layout(local_size_x = 64) in;\n"
@@ -2361,6 +2424,7 @@ char *sl_glsl_emit(const struct sl_slice *s, const struct sl_program *const *lig
 	sl_glsl_emit_helpers(g);
 	fill_strings(g, layout);
 	fill_sites(g, layout);
+	fill_map_sites(g, layout);
 
 	struct rl_strbuf all = { 0 };
 	for (int k = 0; k < GS_COUNT; k++) {
@@ -2381,6 +2445,7 @@ out:
 	rl_vec_free(g->space_on);
 	rl_vec_free(g->splines);
 	rl_vec_free(g->sites);
+	rl_vec_free(g->msites);
 	free(g->stack);
 	rl_arena_destroy(g->arena);
 	return src;
@@ -2396,6 +2461,7 @@ void sl_glsl_layout_finish(struct sl_glsl_layout *layout)
 	free(layout->in_step_u);
 	free(layout->in_step_v);
 	free(layout->shadows);
+	free(layout->maps);
 	memset(layout, 0, sizeof(*layout));
 }
 

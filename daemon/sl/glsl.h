@@ -83,6 +83,17 @@ struct sl_glsl_shadow_site {
 /** The texture unit of shadow() site 0; site k uses SL_GLSL_SHADOW_UNIT0 + k. */
 #define SL_GLSL_SHADOW_UNIT0 2
 
+enum sl_glsl_map_kind { SL_GLSL_MAP_TEXTURE, SL_GLSL_MAP_ENVIRONMENT };
+
+/* A texture() or environment() call of a named map in the generated code
+ * (with input_steps): which map it reads is chosen when the kernel runs. */
+struct sl_glsl_map_site {
+	int light;                 /* the light whose code calls it; -1: the slice */
+	const char *param;         /* the string parameter of that shader naming the map, or NULL */
+	const char *name;          /* with no @param: the constant map name */
+	enum sl_glsl_map_kind kind;
+};
+
 /** Where each input and output lives in the buffers, in floats. */
 struct sl_glsl_layout {
 	uint32_t in_stride;    /* floats per sample in the input buffer */
@@ -104,6 +115,12 @@ struct sl_glsl_layout {
 	 * input_steps only; one block the layout owns). */
 	struct sl_glsl_shadow_site *shadows;
 	uint32_t nshadows;
+	/* The texture() and environment() sites of named maps (with
+	 * input_steps only; one block the layout owns). Site k reads the
+	 * samplerBuffer "u_map<k>", bound to texture unit
+	 * SL_GLSL_SHADOW_UNIT0 + nshadows + k by its sampler uniform. */
+	struct sl_glsl_map_site *maps;
+	uint32_t nmaps;
 };
 
 /**
@@ -130,9 +147,14 @@ struct sl_glsl_layout {
  * (gpu/shadowmap.h gpu_shadow_map_bind sets them all). The filter, its
  * samples and their jitter are the renderer's (render/texture.c
  * reyes_tex_shadow), in the same arithmetic. The constant empty name is the
- * fill, with no site. texture() and environment() read no file: a name
+ * fill, with no site. With input_steps, texture() and environment() of a
+ * map named by a string parameter or a constant read map site k's
+ * samplerBuffer "u_map<k>" (one R32F buffer: a header with the level table
+ * and wrap modes, then every level, row-major, channels interleaved, as
+ * glsl_texmap.c says and gpu/texmap.c writes; a buffer of zeros is no map,
+ * the fill), filtered as render/texture.c filters. Without input_steps they read no file: a name
  * known only at run time gives the fill (a warning), a constant one is an
- * error; without input_steps shadow() is treated the same way.
+ * error; shadow() is treated the same way.
  * Every built-in the code uses is emitted with the interpreter's numerics.
  * Returns the source (free() it) and fills @layout (free with
  * sl_glsl_layout_finish), or NULL with "FILE:LINE:COL: error: ..." on @diag

@@ -7,8 +7,9 @@
  *
  * What the GPU cannot do is an error at the call: derivatives (Du, Dv,
  * Deriv, area, calculatenormal, two-argument filterstep) except on
- * derivative stencils (slice->input_steps), random(), texture files but
- * shadow maps on stencils, string building (format, concat), host queries
+ * derivative stencils (slice->input_steps), random(), map files except on
+ * stencils (shadow maps here; texture and environment maps with
+ * glsl_texmap.c's filters), string building (format, concat), host queries
  * (attribute, option, rendererinfo, depth). printf is dropped with a
  * warning.
  *
@@ -560,6 +561,11 @@ static const char deriv_glsl[] =
 	"\treturn float(x);\n"
 	"}\n"
 	/* v + su du + sv dv: a corner of a filter region (exec_builtins.c tex_region). */
+	"float rl_corner1(float v, float du, float dv, float su, float sv) {\n"
+	"\tprecise float a = v + su * du;\n"
+	"\tprecise float b = a + sv * dv;\n"
+	"\treturn rl_fin(b);\n"
+	"}\n"
 	"vec3 rl_corner(vec3 v, vec3 du, vec3 dv, float su, float sv) {\n"
 	"\tprecise vec3 a = v + su * du;\n"
 	"\tprecise vec3 b = a + sv * dv;\n"
@@ -711,13 +717,14 @@ static const struct helper helpers[GH_COUNT] = {
 	[GH_FILTERSTEP] = { filterstep_glsl, { 0 } },
 	[GH_DERIV] = { deriv_glsl, { GH_FILTERSTEP } },
 	[GH_SHADOW] = { shadow_glsl, { GH_DERIV, GH_NOISE } },
+	[GH_TEXMAP] = { sl_glsl_texmap_src, { GH_DERIV } },
 };
 
 /* Output order: every helper after the ones it calls. */
 static const uint8_t helper_order[GH_COUNT] = {
 	GH_CORE, GH_MATH, GH_VEC, GH_AIDX, GH_CIDX, GH_INVERSE, GH_MATDIV, GH_XFORM, GH_NOISE,
 	GH_GEOM, GH_FRESNEL, GH_SPECBRDF, GH_CONE, GH_COLOR, GH_SPLINE, GH_FILTERSTEP, GH_DERIV,
-	GH_SHADOW,
+	GH_SHADOW, GH_TEXMAP,
 };
 
 void sl_glsl_need(struct glsl_gen *g, enum glsl_helper h)
@@ -1796,6 +1803,138 @@ static void call_shadow(struct glsl_gen *g, const struct sl_insn *in)
 }
 
 /*
+ * The options of texture() and environment() from argument @k on, as
+ * exec_builtins.c tex_options reads them: o[0..4] swidth, twidth, sblur,
+ * tblur, fill. False (an error) for an option whose name is not constant.
+ */
+static bool map_options(struct glsl_gen *g, const struct sl_insn *in, int k, const char *o[5])
+{
+	const struct sl_program *prog = g->cur->prog;
+	const int32_t *a = in->args;
+	o[0] = o[1] = "1.0";
+	o[2] = o[3] = o[4] = "0.0";
+	for (; k < in->nargs; k += 2) {
+		if (prog->regs[a[k]].type != SL_TYPE_STRING || k + 1 >= in->nargs) {
+			sl_glsl_warning(g, in, "%s: options must be \"name\", value pairs", bi_name(in));
+			break;
+		}
+		const char *opt = sl_glsl_cstr(g, a[k]);
+		if (!opt) {
+			sl_glsl_error(g, in, "%s() options must be constant strings on the GPU",
+				      bi_name(in));
+			return false;
+		}
+		int32_t vr = a[k + 1];
+		if (prog->regs[vr].type == SL_TYPE_STRING) {
+			if (strcmp(opt, "filter") != 0)
+				sl_glsl_warning(g, in, "%s: unknown option '%s'", bi_name(in), opt);
+			continue;
+		}
+		const char *v = opt_value(g, vr);
+		if (!strcmp(opt, "blur"))
+			o[2] = o[3] = v;
+		else if (!strcmp(opt, "sblur"))
+			o[2] = v;
+		else if (!strcmp(opt, "tblur"))
+			o[3] = v;
+		else if (!strcmp(opt, "width"))
+			o[0] = o[1] = v;
+		else if (!strcmp(opt, "swidth"))
+			o[0] = v;
+		else if (!strcmp(opt, "twidth"))
+			o[1] = v;
+		else if (!strcmp(opt, "fill"))
+			o[4] = v;
+		else if (strcmp(opt, "samples") && strcmp(opt, "bias"))
+			sl_glsl_warning(g, in, "%s: unknown option '%s'", bi_name(in), opt);
+	}
+	return true;
+}
+
+/*
+ * texture(name[channel], [s, t | s1, t1, ..., s4, t4], options...) and
+ * environment(name[channel], D | D1, D2, D3, D4, options...) of a named
+ * map on derivative stencils: a map site, whose map is bound when the kernel
+ * runs (the fill when none is), filtered as reyes_tex_texture and
+ * reyes_tex_environment filter. The corners around s, t or D are
+ * exec_builtins.c's tex_region on the stencil.
+ */
+static void call_texmap(struct glsl_gen *g, const struct sl_insn *in, int id)
+{
+	const struct sl_program *prog = g->cur->prog;
+	const int32_t *a = in->args;
+	static const char *const su[4] = { "-0.5", "0.5", "0.5", "-0.5" };
+	static const char *const sv[4] = { "-0.5", "-0.5", "0.5", "0.5" };
+	int ncoord = 0;
+	while (2 + ncoord < in->nargs && prog->regs[a[2 + ncoord]].type != SL_TYPE_STRING)
+		ncoord++;
+	const char *c[8];
+	if (id == SL_BI_TEXTURE) {
+		if (ncoord >= 8) {
+			for (int k = 0; k < 8; k++)
+				c[k] = op(g, a[2 + k], 1);
+			ncoord = 8;
+		} else {
+			int32_t st[2] = { ncoord >= 2 ? a[2] : prog->global_reg[SL_GLOBAL_S],
+					  ncoord >= 2 ? a[3] : prog->global_reg[SL_GLOBAL_T] };
+			for (int j = 0; j < 2; j++) {
+				if (st[j] < 0) {
+					sl_glsl_error(g, in, "texture: no s and t here");
+					return;
+				}
+				if (!deriv_operand(g, in, st[j]))
+					return;
+				const char *v = op(g, st[j], 1), *du = step_diff(g, st[j], 0, 1);
+				const char *dv = step_diff(g, st[j], 0, 2);
+				for (int k = 0; k < 4; k++)
+					c[2 * k + j] = SL_GLSL_FMT(g, "rl_corner1(%s, %s, %s, %s, %s)", v,
+								   du, dv, su[k], sv[k]);
+			}
+			ncoord = ncoord >= 2 ? 2 : 0;
+		}
+	} else {
+		if (ncoord < 1) {
+			sl_glsl_error(g, in, "environment: missing direction");
+			return;
+		}
+		if (ncoord >= 4) {
+			for (int k = 0; k < 4; k++)
+				c[k] = op(g, a[2 + k], 3);
+			ncoord = 4;
+		} else {
+			if (!deriv_operand(g, in, a[2]))
+				return;
+			const char *v = op(g, a[2], 3), *du = step_diff3(g, a[2], 1);
+			const char *dv = step_diff3(g, a[2], 2);
+			for (int k = 0; k < 4; k++)
+				c[k] = SL_GLSL_FMT(g, "rl_corner(%s, %s, %s, %s, %s)", v, du, dv, su[k],
+						   sv[k]);
+			ncoord = 1;
+		}
+	}
+	const char *o[5];
+	if (!map_options(g, in, 2 + ncoord, o))
+		return;
+	int site = sl_glsl_map_site(g, in, id == SL_BI_TEXTURE ? SL_GLSL_MAP_TEXTURE
+							       : SL_GLSL_MAP_ENVIRONMENT);
+	if (site < 0 || in->dst < 0)
+		return;
+	sl_glsl_need(g, GH_TEXMAP);
+	int nc = ncomp(g, in->dst) == 3 ? 3 : 1;
+	const char *e;
+	if (id == SL_BI_TEXTURE)
+		e = SL_GLSL_FMT(g, "rl_texture(u_map%d, %s, %d, vec4(%s, %s, %s, %s), "
+				"vec4(%s, %s, %s, %s), %s, %s, %s, %s, %s)", site, op(g, a[1], 1), nc,
+				c[0], c[2], c[4], c[6], c[1], c[3], c[5], c[7], o[0], o[1], o[2], o[3],
+				o[4]);
+	else
+		e = SL_GLSL_FMT(g, "rl_environment(u_map%d, %s, %d, %s, %s, %s, %s, %s, %s, %s, %s, "
+				"%s)", site, op(g, a[1], 1), nc, c[0], c[1], c[2], c[3], o[0], o[1], o[2],
+				o[3], o[4]);
+	set_dst(g, in, nc == 3 ? e : SL_GLSL_FMT(g, "%s.x", e));
+}
+
+/*
  * texture / environment / shadow / textureinfo: only the empty name, the
  * "no map" default of texture parameters, gives what the interpreter gives
  * for it (the fill value; textureinfo: not found).
@@ -1807,6 +1946,10 @@ static void call_texture(struct glsl_gen *g, const struct sl_insn *in, int id)
 	const char *name = sl_glsl_cstr(g, in->args[0]);
 	if (id == SL_BI_SHADOW && g->stencil && !(name && !*name)) {
 		call_shadow(g, in);
+		return;
+	}
+	if ((id == SL_BI_TEXTURE || id == SL_BI_ENVIRONMENT) && g->stencil && !(name && !*name)) {
+		call_texmap(g, in, id);
 		return;
 	}
 	if (name && *name) {

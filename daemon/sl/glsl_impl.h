@@ -33,6 +33,7 @@ enum glsl_helper {
 	GH_FILTERSTEP,
 	GH_DERIV,       /* derivative stencils: corners, area, normals, filterstep widths */
 	GH_SHADOW,      /* shadow(): the renderer's depth map filter */
+	GH_TEXMAP,      /* texture(), environment() of named maps (glsl_texmap.c) */
 	GH_COUNT
 };
 
@@ -80,6 +81,7 @@ struct glsl_prog {
 	uint8_t *decl;           /* per register: declared (the temporaries the code names) */
 	int32_t *copy_of;        /* per register: the one register a MOV copies into it, or -1 */
 	int32_t *site;           /* per instruction: its shadow() site, or -1 */
+	int32_t *msite;          /* per instruction: its texture() / environment() site, or -1 */
 	bool moved_ps;           /* a light called with Ps moved along u and v too */
 };
 
@@ -114,7 +116,11 @@ struct glsl_gen {
 	int moved;                        /* emitting the copy moved along u (1) or v (2); 0 */
 	bool any_moved_ps;                /* some light takes Ps moved */
 	RL_VEC(struct sl_glsl_shadow_site) sites;
+	RL_VEC(struct sl_glsl_map_site) msites;
 };
+
+/** GH_TEXMAP's text: the renderer's texture and environment filters (glsl_texmap.c). */
+extern const char sl_glsl_texmap_src[];
 
 /** Report "FILE:LINE:COL: error: ..." at instruction @in of the current program. */
 void sl_glsl_error(struct glsl_gen *g, const struct sl_insn *in, const char *fmt, ...)
@@ -168,6 +174,9 @@ int sl_glsl_class(const struct glsl_gen *g, int32_t r);
 const char *sl_glsl_moved(struct glsl_gen *g, int32_t r, int want, int dir);
 /** The site index of shadow() CALL @in of the current program, adding it (-1 on errors). */
 int sl_glsl_shadow_site(struct glsl_gen *g, const struct sl_insn *in);
+
+/** The map site index of texture() or environment() CALL @in (@kind), adding it (-1 on errors). */
+int sl_glsl_map_site(struct glsl_gen *g, const struct sl_insn *in, enum sl_glsl_map_kind kind);
 
 /** Floats per element of register @r (strings: 1, a token id). */
 int sl_glsl_ncomp(const struct sl_program *prog, int32_t r);

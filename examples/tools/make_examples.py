@@ -529,3 +529,103 @@ FrameEnd
 """ % dict(n=len(people), cam=look_at((0, 1.75, -1.5), (0.2, 1.2, 10)),
            props="\n".join(props), people="\n".join(people))
 write("examples/crowd/crowd.rib", crowd)
+
+# ---- textured_lights: slides, a cookie, a projector and an environment-coloured light ----
+def pattern_frame(n, display, width, height, cells, filt="\"box\" 1 1"):
+    """A frame that renders colour cells to @display (@filt softens their edges): an
+    image for MakeTexture."""
+    a = width / height
+    out = ["FrameBegin %d" % n,
+           "  Format %d %d 1" % (width, height),
+           "  PixelSamples 1 1",
+           '  PixelFilter %s' % filt,
+           '  Projection "orthographic"',
+           '  Display "%s" "file" "rgb"' % display,
+           "  WorldBegin",
+           '    Surface "constant"']
+    nx, ny = len(cells[0]), len(cells)
+    for j in range(ny):
+        for i in range(nx):
+            x0, x1 = -a + 2 * a * i / nx, -a + 2 * a * (i + 1) / nx
+            y1, y0 = 1 - 2 * j / ny, 1 - 2 * (j + 1) / ny
+            out.append("    Color [%s]" % " ".join("%.3g" % c for c in cells[j][i]))
+            out.append('    Polygon "P" [%g %g 1  %g %g 1  %g %g 1  %g %g 1]'
+                       % (x0, y0, x0, y1, x1, y1, x1, y0))
+    out += ["  WorldEnd", "FrameEnd"]
+    return "\n".join(out)
+
+palette = [(0.95, 0.2, 0.15), (0.2, 0.8, 0.25), (0.2, 0.35, 0.95), (0.95, 0.85, 0.2),
+           (0.9, 0.3, 0.85), (0.2, 0.85, 0.9), (1, 1, 1), (0.15, 0.15, 0.15)]
+slide_a = [[palette[(i + 2 * j) % 8] for i in range(4)] for j in range(4)]
+slide_b = [[palette[(3 * i + 1) % 8] for i in range(8)]]
+cookie = [[(1, 1, 1) if (i % 2 == 0 and j % 2 == 0) else (0.05, 0.05, 0.05) for i in range(6)]
+          for j in range(6)]
+sky = [(0.9, 0.55, 0.3), (1, 0.9, 0.6), (0.5, 0.8, 1), (0.3, 0.4, 0.9)]
+env = [[[sky[j][c] * (0.6 + 0.4 * ((i * 3 + j) % 4) / 3) for c in range(3)] for i in range(8)]
+       for j in range(4)]
+# Slides with edges a few texels soft: a texel edge that sharp, magnified on a wall, is
+# where the bake's filter regions and the render's differ most.
+soft = '"gaussian" 6 6'
+maps = "##RenderMan RIB\n" \
+    "# The pictures of the textured_lights example, flat colour cells: render this file in\n" \
+    "# this folder (relight render maps.rib) to remake the committed .exr files.\n" \
+    "version 3.04\n" + "\n".join([pattern_frame(1, "slide_a.exr", 64, 64, slide_a, soft),
+                                  pattern_frame(2, "slide_b.exr", 64, 64, slide_b, soft),
+                                  pattern_frame(3, "cookie.exr", 48, 48, cookie),
+                                  pattern_frame(4, "env.exr", 128, 64, env)]) + "\n"
+write("examples/textured_lights/maps/maps.rib", maps)
+textured = """##RenderMan RIB
+# Lights that read textures: an uberlight with a slide, a spot through a cookie (gobo), a
+# slide projector, and a point light coloured by a latitude-longitude environment map,
+# 320x180 at 2x2 samples. The pictures are maps/*.exr (maps/maps.rib renders them);
+# MakeTexture and MakeLatLongEnvironment turn them into maps in the current directory.
+version 3.04
+MakeTexture "maps/slide_a.exr" "slide_a.tx" "black" "black" "box" 1 1
+MakeTexture "maps/slide_b.exr" "slide_b.tx" "black" "black" "box" 1 1
+MakeTexture "maps/cookie.exr" "cookie.tx" "periodic" "periodic" "box" 1 1
+MakeLatLongEnvironment "maps/env.exr" "env.tx" "box" 1 1
+FrameBegin 1
+  Format 320 180 1
+  PixelSamples 2 2
+  PixelFilter "gaussian" 2 2
+  Projection "perspective" "fov" 45
+  Display "textured_lights.exr" "file" "rgba"
+  %(cam)s
+  WorldBegin
+    LightSource "ambientlight" 1 "intensity" 0.05
+    TransformBegin
+      %(slide_place)s
+      LightSource "uberlight" 2 "intensity" 1.5 "slidename" "slide_a.tx"
+          "width" 0.35 "height" 0.35 "wedge" 0.05 "hedge" 0.05
+    TransformEnd
+    LightSource "cookielight" 3 "intensity" 25 "from" [3.5 5 0.5] "to" [0.8 0 3.5]
+        "coneangle" 0.35 "conedeltaangle" 0.05 "cookiename" "cookie.tx" "cookiescale" 1.5
+        "blur" 0.01
+    LightSource "projector" 4 "intensity" 14 "from" [0.3 2.2 -1.2] "to" [0 1.6 6]
+        "fov" 0.5 "aspect" 1.5 "slidename" "slide_b.tx"
+    LightSource "envcolorlight" 5 "intensity" 1.2 "from" [-0.6 1.1 2.4] "envname" "env.tx"
+    Surface "plastic" "Kd" 0.75 "Ks" 0.2 "roughness" 0.15
+    AttributeBegin
+      Color [0.8 0.8 0.78]
+      Polygon "P" [-5 0 -3  -5 0 7  5 0 7  5 0 -3]
+      Polygon "P" [-5 0 7  -5 5 7  5 5 7  5 0 7]
+    AttributeEnd
+    AttributeBegin
+      Color [0.85 0.85 0.85]
+      Translate 0.9 0.6 3.6
+      Sphere 0.6 -0.6 0.6 360
+    AttributeEnd
+    AttributeBegin
+      Surface "matte" "Kd" 0.8
+      Color [0.7 0.72 0.75]
+      Translate -1.3 0 4.4
+      Rotate -90 1 0 0
+      Cylinder 0.4 0 1.2 360
+      Translate 0 0 1.2
+      Disk 0 0.4 360
+    AttributeEnd
+  WorldEnd
+FrameEnd
+""" % dict(cam=look_at((0, 1.6, -2.2), (0, 1.0, 5)),
+           slide_place=place((-3, 3.5, 0), (-0.5, 1.2, 6.5)))
+write("examples/textured_lights/textured_lights.rib", textured)

@@ -186,7 +186,7 @@ bad_usage() {
 	run "usage: --set $1" bash -c "cd '$work/crowd' && '$relight' render -q -o usage.exr --set '$1' crowd.rib"
 	expect_no_crash
 	expect_status 2
-	expect_stderr "^relight render: --set needs LIGHT.PARAM=V\[,V,...\] with up to 16 numbers, not '"
+	expect_stderr "^relight render: --set needs LIGHT.PARAM=V\[,V,...\] with up to 16 numbers, or LIGHT.PARAM=TEXT for a string, not '"
 	checks=$((checks + 1))
 	[ ! -e "$work/crowd/usage.exr" ] || fail "an image was written"
 }
@@ -217,6 +217,6 @@ expect_stderr "at most 64 --set edits"
 # The preview parses --set with the same code and says the same.
 run "preview: --set malformed" "$relight" preview --cpu --set 3.intensity=1, x.shot.exr
 expect_status 2
-expect_stderr "^relight preview: --set needs LIGHT.PARAM=V\[,V,...\] with up to 16 numbers, not '3.intensity=1,'"
+expect_stderr "^relight preview: --set needs LIGHT.PARAM=V\[,V,...\] with up to 16 numbers, or LIGHT.PARAM=TEXT for a string, not '3.intensity=1,'"
 
 finish

@@ -335,8 +335,8 @@ def errors(d, c):
         C.check(e.code in ("range", "type") and e.id == req.id,
                 "format 'rgb' refused with the request's id", "%s id %r" % (e.code, e.id))
     C.raises(lambda: o.request("bogus"), "unknown_op", "unknown op")
-    C.raises(lambda: o.request("set", light="2", params={"intensity": "x"}), "type",
-             "a string value")
+    C.raises(lambda: o.request("set", light="2", params={"intensity": True}), "type",
+             "a boolean value")
     C.raises(lambda: o.request("set", light="2", params={"intensity": 1e39}), "range",
              "1e39 is not a float")
     o.disconnect()

@@ -243,7 +243,9 @@ REQUESTS = [
     ('{"op":"set","light":"2","params":null}', "type"),
     ('{"op":"set","light":"2","params":[1]}', "type"),
     ('{"op":"set","light":"2","params":"intensity=1"}', "type"),
-    (SET % '"x"', "type"),
+    (SET % '"x"', "ok"),
+    (SET % ('"%s"' % ("m" * 4095)), "ok"),
+    (SET % ('"%s"' % ("m" * 4096)), "range"),
     (SET % "true", "type"),
     (SET % "null", "type"),
     (SET % "{}", "type"),
@@ -475,6 +477,10 @@ def client_session(d):
         return
     e = c.set(light, intensity=0.25)
     c.wait(e, FINAL)
+    # a string parameter takes a string (uberlight 35's slide: none), not numbers
+    e = c.set("35", slidename="")
+    c.wait(e, FINAL)
+    C.raises(lambda: c.set("35", slidename=2), "type", "numbers for a string parameter")
     c.mute(light)
     c.unmute(light)
     c.solo(light)
@@ -493,7 +499,7 @@ def client_session(d):
     C.raises(lambda: c.set(light, nope=1), "unknown_param", "set of an unknown parameter")
     C.raises(lambda: c.request("bogus"), "unknown_op", "an unknown op")
     C.raises(lambda: c.request("set", light=light, params={"intensity": "x"}), "type",
-             "a string value")
+             "a string value for a float parameter")
     C.raises(lambda: c.request("set", light=light, params={"intensity": 1e39}), "range",
              "a value past a float")
     C.raises(lambda: c.request("hello", version=1), "state", "hello twice")

@@ -2137,6 +2137,7 @@ struct stencil_run {
 #define GLSL_TEST_SHADOW_MAPS 1
 #include "texture.h"
 #include "shadowmap.h"
+#include "texmap.h"
 #endif
 #endif
 
@@ -2155,6 +2156,18 @@ static bool st_shadow(void *user, const struct sl_tex_lookup *q)
 		shadow_partial += q->out[i] > 0.0f && q->out[i] < 1.0f;
 	}
 	return ok;
+}
+
+static bool st_texture(void *user, const struct sl_tex_lookup *q)
+{
+	const struct sl_lighthost *lh = user;
+	return reyes_tex_texture(lh->owner, q);
+}
+
+static bool st_environment(void *user, const struct sl_tex_lookup *q)
+{
+	const struct sl_lighthost *lh = user;
+	return reyes_tex_environment(lh->owner, q);
 }
 #endif
 
@@ -2337,8 +2350,11 @@ static bool stencil_setup(struct stencil_run *t, const char *name, struct sl_pro
 	lh.light_shader_mats = (const float (*)[16])light_mats;
 #ifdef GLSL_TEST_SHADOW_MAPS
 	lh.owner = t->ts;
-	if (t->ts)
+	if (t->ts) {
 		lh.host.shadow = st_shadow;
+		lh.host.texture = st_texture;
+		lh.host.environment = st_environment;
+	}
 #endif
 	bool ok = sl_exec_run(x, &lh.host);
 	CHECK(ok);
@@ -2893,6 +2909,162 @@ static void test_shadow_map(void)
 	unlink(path);
 	rmdir(dir);
 }
+
+/* ---- texture() and environment() of named maps on stencils ---- */
+
+static struct gpu_texmap *test_tex;
+
+/*
+ * A picture of @w x @h with sharp cells and a smooth ramp (so that every
+ * filter footprint and mip level shows), written to @path as an EXR.
+ */
+static bool write_test_picture(const char *path, uint32_t w, uint32_t h, uint32_t nch,
+			       uint32_t shift)
+{
+	static const char *const names[] = { "R", "G", "B" };
+	struct reyes_image im;
+	if (!reyes_image_init(&im, w, h, nch, names))
+		return false;
+	for (uint32_t y = 0; y < h; y++)
+		for (uint32_t x = 0; x < w; x++)
+			for (uint32_t c = 0; c < nch; c++) {
+				bool cell = ((x * 5 / w) + (y * 3 / h) + c + shift) % 2 == 0;
+				im.data[((size_t)y * w + x) * nch + c] =
+					(cell ? 0.9f : 0.1f) + 0.3f * (float)x / (float)w * (float)(c + 1) +
+					0.1f * (float)shift;
+			}
+	bool ok = reyes_image_write_exr(path, &im, false, stderr);
+	reyes_image_finish(&im);
+	return ok;
+}
+
+static const char *tex_param;       /* the light's parameter naming the map */
+static const char *tex_extra;       /* a float parameter to set, or NULL */
+static float tex_extra_value;
+
+static void aim_textured(struct xc *c)
+{
+	const float from[3] = { 0, 0, 0 }, to[3] = { 0.05f, -0.03f, 1 };
+	if (sl_program_find_param(c->prog[1], "to") >= 0) {
+		xc_set(c, 1, "from", from, 3);
+		xc_set(c, 1, "to", to, 3);
+	} else if (sl_program_find_param(c->prog[1], "from") >= 0) {
+		xc_set(c, 1, "from", from, 3);
+	}
+	if (sl_program_find_param(c->prog[1], "coneangle") >= 0)
+		xc_setf(c, 1, "coneangle", 0.5f);
+	if (sl_program_find_param(c->prog[1], "fov") >= 0)
+		xc_setf(c, 1, "fov", 0.9f);
+	if (tex_extra)
+		xc_setf(c, 1, tex_extra, tex_extra_value);
+	xc_sets(c, 1, tex_param, "relight_test_glsl_tex.tx");
+}
+
+static bool bind_test_tex(struct stencil_run *t, struct gpu_program *gp, struct gpu_binding *b,
+			  uint32_t *nb, struct gpu_buffer *bin)
+{
+	if (t->lay.nmaps != 1)
+		return false;
+	(void)gp;
+	b[*nb].buffer = bin;
+	return gpu_texmap_bind(test_tex, SL_GLSL_SHADOW_UNIT0 + t->lay.nshadows, &b[(*nb)++]);
+}
+
+/*
+ * Light shaders of shaders/ that read a named map, over plastic on
+ * stencils: the GPU's texture() and environment() against render/texture.c
+ * through the interpreter, every sample within TOL; then with no map bound,
+ * against the interpreter without the file (the fill).
+ */
+static void test_texture_maps(void)
+{
+	static const struct {
+		const char *light, *param, *make, *extra;
+		float extra_value;
+		uint32_t w, h, nch;
+	} cases[] = {
+		{ "uberlight", "slidename", "black", NULL, 0, 64, 64, 3 },
+		{ "projector", "slidename", "clamp", "blur", 0.05f, 48, 32, 3 },
+		{ "cookielight", "cookiename", "periodic", "cookiescale", 6, 40, 40, 1 },
+		{ "cookielight", "cookiename", "periodic", "cookiescale", 0.5f, 16, 16, 3 },
+		{ "cookielight", "cookiename", "clamp", "cookiescale", 0.5f, 16, 16, 3 },
+		{ "projector", "slidename", "periodic", "blur", 0.0f, 16, 16, 3 },
+		{ "envcolorlight", "envname", "latlong", NULL, 0, 64, 32, 3 },
+		{ "envcolorlight", "envname", "latlong", "blur", 0.1f, 64, 32, 3 },
+		{ "envcolorlight", "envname", "cube", NULL, 0, 16, 16, 3 },
+		{ "envcolorlight", "envname", "cube", "blur", 0.2f, 32, 32, 3 },
+	};
+	char dir[] = "/tmp/relight-glsl-XXXXXX";
+	CHECK(mkdtemp(dir) != NULL);
+	char pic[160], tex[160];
+	snprintf(pic, sizeof(pic), "%s/picture.exr", dir);
+	snprintf(tex, sizeof(tex), "%s/relight_test_glsl_tex.tx", dir);
+	struct sl_program *surf = load("plastic");
+	for (size_t i = 0; i < sizeof(cases) / sizeof(cases[0]); i++) {
+		CHECK(write_test_picture(pic, cases[i].w, cases[i].h, cases[i].nch, 0));
+		if (!strcmp(cases[i].make, "cube")) {
+			/* six faces, each its own picture, 100 degrees wide (a margin) */
+			char faces[6][160];
+			const char *fp[6];
+			for (int f = 0; f < 6; f++) {
+				snprintf(faces[f], sizeof(faces[f]), "%s/face%d.exr", dir, f);
+				fp[f] = faces[f];
+				CHECK(write_test_picture(faces[f], cases[i].w, cases[i].h, cases[i].nch,
+							 (uint32_t)f));
+			}
+			CHECK(reyes_make_cube_environment(fp, tex, 100, "box", 1, 1, stderr));
+			for (int f = 0; f < 6; f++)
+				unlink(faces[f]);
+		} else if (!strcmp(cases[i].make, "latlong")) {
+			CHECK(reyes_make_latlong_environment(pic, tex, "box", 1, 1, stderr));
+		} else {
+			CHECK(reyes_make_texture(pic, tex, cases[i].make, cases[i].make, "box", 1, 1,
+						 stderr));
+		}
+		struct reyes_texsys *ts = reyes_texsys_create(dir, current_to_world, stderr);
+		struct sl_program *light = load(cases[i].light);
+		CHECK(ts && surf && light);
+		tex_param = cases[i].param;
+		tex_extra = cases[i].extra;
+		tex_extra_value = cases[i].extra_value;
+		char name[96];
+		snprintf(name, sizeof(name), "%s + plastic, %s %ux%u%s%s", cases[i].light,
+			 cases[i].make, cases[i].w, cases[i].h, cases[i].extra ? " " : "",
+			 cases[i].extra ? cases[i].extra : "");
+		struct stencil_run t;
+		memset(&t, 0, sizeof(t));
+		if (ts && surf && light &&
+		    stencil_setup(&t, name, surf, light, NULL, 0, 32, 24, aim_textured, ts)) {
+			CHECK(t.lay.nmaps == 1 && t.lay.maps[0].light == 0 &&
+			      t.lay.maps[0].param && !strcmp(t.lay.maps[0].param, cases[i].param));
+			char err[256];
+			test_tex = gpu_texmap_load(ctx, ts, "relight_test_glsl_tex.tx", err, sizeof(err));
+			CHECK(test_tex != NULL);
+			if (!test_tex)
+				fprintf(stderr, "%s\n", err);
+			stencil_defaults(&t);
+			float *gpu = calloc((size_t)t.n * 3, sizeof(float));
+			if (test_tex && stencil_gpu(&t, gpu, bind_test_tex)) {
+				uint32_t nbad;
+				double e = stencil_compare(&t, gpu, TOL, &nbad);
+				CHECK(e <= TOL);
+				CHECK(nbad == 0);
+				printf("%-44s %u samples, max diff %.2e (tol %.0e), %u beyond\n", name,
+				       t.n, e, TOL, nbad);
+			}
+			free(gpu);
+			gpu_texmap_destroy(test_tex);
+			test_tex = NULL;
+		}
+		stencil_finish(&t);
+		sl_program_destroy(light);
+		reyes_texsys_destroy(ts);
+		unlink(tex);
+	}
+	sl_program_destroy(surf);
+	unlink(pic);
+	rmdir(dir);
+}
 #endif
 
 int main(void)
@@ -2938,6 +3110,7 @@ int main(void)
 	RUN(test_shadow_fill);
 #ifdef GLSL_TEST_SHADOW_MAPS
 	RUN(test_shadow_map);
+	RUN(test_texture_maps);
 #else
 	printf("*** the shadow map cross-check needs test_glsl linked with the renderer and the "
 	       "GPU runtime (libruntime_dep): not built ***\n");

@@ -57,6 +57,14 @@ static void test_requests(void)
 	proto_request_free(&r);
 	CHECK(parse("{\"op\":\"freeze\",\"light\":\"key\",\"freeze\":false}", &r, &e) && !r.on);
 	proto_request_free(&r);
+	/* a string parameter's value: its text, no numbers */
+	CHECK(parse("{\"op\":\"set\",\"light\":\"2\",\"params\":{\"slidename\":\"b.tx\"}}", &r,
+		    &e) && r.nparams == 1 && r.params[0].n == 0 && r.params[0].text &&
+	      !strcmp(r.params[0].text, "b.tx"));
+	proto_request_free(&r);
+	CHECK(parse("{\"op\":\"set\",\"light\":\"2\",\"params\":{\"i\":2}}", &r, &e) &&
+	      r.nparams == 1 && r.params[0].n == 1 && !r.params[0].text);
+	proto_request_free(&r);
 	for (int op = 0; op < PROTO_OP_COUNT; op++)
 		CHECK(strcmp(proto_op_name((enum proto_op)op), "?"));
 	/* not NUL-terminated: only @len bytes count */
@@ -106,7 +114,7 @@ static void test_errors(void)
 	expect_error("{\"op\":\"open\",\"shot\":\"a\",\"format\":\"rgb\"}", PROTO_E_RANGE, false);
 	expect_error("{\"op\":\"set\",\"id\":7,\"light\":\"k\"}", PROTO_E_TYPE, true);
 	expect_error("{\"op\":\"set\",\"light\":\"k\",\"params\":{}}", PROTO_E_TYPE, false);
-	expect_error("{\"op\":\"set\",\"light\":\"k\",\"params\":{\"i\":\"x\"}}", PROTO_E_TYPE, false);
+	expect_error("{\"op\":\"set\",\"light\":\"k\",\"params\":{\"i\":true}}", PROTO_E_TYPE, false);
 	expect_error("{\"op\":\"set\",\"light\":\"k\",\"params\":{\"i\":1e39}}", PROTO_E_RANGE, false);
 	expect_error("{\"op\":\"set\",\"light\":\"k\",\"params\":{\"i\":1e999}}", PROTO_E_RANGE, false);
 	expect_error("{\"op\":\"set\",\"light\":\"k\",\"params\":{\"i\":[]}}", PROTO_E_RANGE, false);

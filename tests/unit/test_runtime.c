@@ -25,6 +25,7 @@
 #include "graph.h"
 #include "bake/resolve.h"
 #include "runtime.h"
+#include "texture.h"
 #include "test.h"
 
 #include <cjson/cJSON.h>
@@ -759,7 +760,7 @@ static void test_nonlinear(void)
 	gpu_shot_close(sh);
 	gpu_shot_close(lin);
 
-	/* a light whose texture() names a file: the GPU says it does not read it */
+	/* a light whose texture() names a file that is not there: the fill, and a warning */
 	char shot_tx[512];
 	CHECK(bake("slide", scene, "WorldBegin\n", "WorldBegin\n  LightSource \"uberlight\" 5 "
 		   "\"slidename\" \"slide.tx\" \"intensity\" 0.5\n", "", shot_tx, sizeof(shot_tx)));
@@ -769,8 +770,103 @@ static void test_nonlinear(void)
 	sh = gpu_shot_open(ctx, shot_tx, &o);
 	fclose(mem);
 	CHECK(sh != NULL);
-	CHECK(buf && strstr(buf, "light '5' reads texture 'slide.tx' (parameter 'slidename')"));
+	CHECK(buf && strstr(buf, "light '5': slide.tx: not found"));
 	free(buf);
+	gpu_shot_close(sh);
+}
+
+/* A slide picture of @w x @h made into texture @name in the work folder. */
+static bool make_slide(const char *name, uint32_t w, uint32_t h, float tint)
+{
+	static const char *const names[] = { "R", "G", "B" };
+	struct reyes_image im;
+	if (!reyes_image_init(&im, w, h, 3, names))
+		return false;
+	for (uint32_t y = 0; y < h; y++)
+		for (uint32_t x = 0; x < w; x++)
+			for (uint32_t c = 0; c < 3; c++)
+				im.data[((size_t)y * w + x) * 3 + c] =
+					((x * 4 / w + y * 4 / h + c) % 2 ? 0.9f : 0.2f) * (c ? 1 : tint);
+	char pic[512], tex[512];
+	snprintf(pic, sizeof(pic), "%s/%s.exr", workdir, name);
+	snprintf(tex, sizeof(tex), "%s/%s", workdir, name);
+	bool ok = reyes_image_write_exr(pic, &im, false, stderr) &&
+		  reyes_make_texture(pic, tex, "black", "black", "box", 1, 1, stderr);
+	reyes_image_finish(&im);
+	return ok;
+}
+
+/*
+ * A slide projector's maps in GPU memory: the shot holds the map its light
+ * names, counted in its bytes; swapping the slide compiles nothing, binds
+ * the new map and frees the old one once no band of the light cache holds
+ * light shaded with it; no slide frees it, the slide back loads it again.
+ * Each state matches the CPU resolver with the same edit.
+ */
+static void test_texture_maps(void)
+{
+	CHECK(make_slide("slide_t.tx", 32, 32, 1.0f) && make_slide("slide_u.tx", 48, 16, 0.3f));
+	char shot[512];
+	CHECK(bake("slides", scene, "WorldBegin\n", "WorldBegin\n  LightSource \"projector\" 5 "
+		   "\"intensity\" 9 \"from\" [0 3 0.5] \"to\" [0 0 0.8] \"fov\" 1.4 "
+		   "\"slidename\" \"slide_t.tx\"\n", "", shot, sizeof(shot)));
+	struct gpu_shot_opts o = { .texture_path = workdir };
+	struct gpu_shot *sh = gpu_shot_open(ctx, shot, &o);
+	CHECK(sh != NULL);
+	if (!sh)
+		return;
+	size_t n = (size_t)W * H * 4, worst, tb = 0;
+	/* loaded with the shot: one map, its levels' texels and the level table */
+	CHECK(gpu_shot_texmaps(sh, &tb) == 1);
+	size_t levels = (32 * 32 + 16 * 16 + 8 * 8 + 4 * 4 + 2 * 2 + 1) * 3 * sizeof(float);
+	CHECK(tb > levels && tb < levels + 1024);
+	size_t with = gpu_shot_bytes(sh);
+	unsigned hits0, built0, hits1, built1;
+	gpu_program_stats(ctx, &hits0, &built0);
+
+	static const char *const states[] = { "slide_u.tx", "", "slide_t.tx" };
+	for (int k = -1; k < 3; k++) {
+		char err[256];
+		if (k >= 0)
+			CHECK(gpu_shot_set_string(sh, "5", "slidename", states[k], err, sizeof(err)));
+		float *g = image_of(shot, true, sh);
+		struct resolve_edit e = { .light = "5", .param = "slidename",
+					  .text = k >= 0 ? states[k] : "slide_t.tx" };
+		struct resolve_opts ro = { .diag = stderr, .level = 3, .texture_path = workdir,
+					   .edits = &e, .nedits = 1 };
+		struct resolve_result rr;
+		CHECK(resolve_cpu(shot, &ro, &rr));
+		double r = rr.rgba ? max_rel(g, rr.rgba, n, &worst) : 1.0;
+		if (!(r <= REL_TOL))
+			fprintf(stderr, "slide '%s': GPU against the CPU %g at %zu\n", e.text, r,
+				worst / 4);
+		CHECK(r <= REL_TOL);
+		free(rr.rgba);
+		free(g);
+		size_t b;
+		uint32_t maps = gpu_shot_texmaps(sh, &b);
+		if (k == 1) {
+			/* no slide: no map, and the shot is smaller by the map's bytes */
+			CHECK(maps == 0 && b == 0 && gpu_shot_bytes(sh) == with - tb);
+		} else {
+			CHECK(maps == 1 && gpu_shot_bytes(sh) == with - tb + b);
+		}
+	}
+	CHECK(gpu_shot_bytes(sh) == with);
+	gpu_program_stats(ctx, &hits1, &built1);
+	CHECK(hits1 == hits0 && built1 == built0);
+
+	/* values of the wrong kind change nothing */
+	char err[256] = "";
+	float one = 1;
+	CHECK(!gpu_shot_set_string(sh, "5", "intensity", "slide_u.tx", err, sizeof(err)));
+	CHECK(strstr(err, "parameter 'intensity' is a float, not a string") != NULL);
+	CHECK(!gpu_shot_set(sh, "5", "slidename", &one, 1, err, sizeof(err)));
+	CHECK(strstr(err, "is a string") != NULL);
+	CHECK(!gpu_shot_set_string(sh, "5", "nothing", "x", err, sizeof(err)));
+	char *cur = gpu_shot_get_string(sh, "5", "slidename");
+	CHECK(cur && !strcmp(cur, "slide_t.tx"));
+	free(cur);
 	gpu_shot_close(sh);
 }
 
@@ -914,6 +1010,7 @@ int main(int argc, char **argv)
 			shot = NULL;
 			RUN(test_shadow_look);
 			RUN(test_nonlinear);
+			RUN(test_texture_maps);
 			RUN(test_surface_and_lights);
 			RUN(test_batches);
 		}
