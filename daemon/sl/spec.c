@@ -448,6 +448,45 @@ static void keep_structure(const struct sl_program *p, uint8_t *keep, const uint
 }
 
 /*
+ * A kept break or continue whose loop is not kept, or return whose inlined
+ * function is not, leaves nothing dynamic behind: the block it leaves runs
+ * no dynamic code. Kept alone it would leave whatever encloses it instead
+ * (a break outside any loop), so it is dropped.
+ */
+static void drop_orphan_exits(const struct sl_program *p, uint8_t *keep)
+{
+	uint32_t *open = rl_xmalloc((p->ncode + 1) * sizeof(uint32_t));
+	uint32_t nopen = 0;
+	for (uint32_t i = p->body_begin; i < p->ncode; i++) {
+		int op = p->code[i].op;
+		if (is_opener(op)) {
+			open[nopen++] = i;
+		} else if (is_closer(op)) {
+			if (nopen)
+				nopen--;
+		} else if ((op == SL_OP_BREAK || op == SL_OP_CONTINUE) && keep[i]) {
+			int levels = p->code[i].imm > 0 ? p->code[i].imm : 1;
+			for (uint32_t k = nopen; k-- > 0;) {
+				int o = p->code[open[k]].op;
+				if ((o == SL_OP_LOOP || o == SL_OP_ILLUMINANCE) && --levels == 0) {
+					if (!keep[open[k]])
+						keep[i] = 0;
+					break;
+				}
+			}
+		} else if (op == SL_OP_RETURN && keep[i]) {
+			for (uint32_t k = nopen; k-- > 0;)
+				if (p->code[open[k]].op == SL_OP_FUNC) {
+					if (!keep[open[k]])
+						keep[i] = 0;
+					break;
+				}
+		}
+	}
+	free(open);
+}
+
+/*
  * A copy of @prog with only the instructions @keep marks (blocks must be kept
  * or dropped whole, with their ELSE optional). Jumps are renumbered; a jump
  * to a dropped ELSE lands on its ENDIF; a parameter whose default code is
@@ -938,6 +977,7 @@ struct sl_spec *sl_specialize_ex(const struct sl_program *prog, const char *cons
 	uint8_t *konst = constant_registers(prog, s);
 	recompute_constants(prog, s, konst);
 	keep_structure(prog, s->keep, NULL);
+	drop_orphan_exits(prog, s->keep);
 
 	s->cached = rl_xcalloc(prog->nregs + 1, sizeof(int32_t));
 	s->outputs = rl_xcalloc(prog->nregs + 1, sizeof(int32_t));

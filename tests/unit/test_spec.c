@@ -1011,6 +1011,31 @@ static const char *const shape_srcs[] = {
 	"	Ci = Os * (Kd * a + Ks * b) + Cs * 0.01 * u;\n"
 	"}\n",
 
+	/* Loops and an inlined function left by break, continue and return, none
+	 * of them holding dynamic code: the dynamic program has none of them */
+	"float firstover(float x)\n"
+	"{\n"
+	"	float k;\n"
+	"	for (k = 0; k < 8; k += 1)\n"
+	"		if (k * 0.25 > x)\n"
+	"			return k;\n"
+	"	return 8;\n"
+	"}\n"
+	"surface staticexits(float Kd = 0.7; output varying float n = 0)\n"
+	"{\n"
+	"	float i;\n"
+	"	for (i = 0; i < 6; i += 1) {\n"
+	"		if (i > 4 * u)\n"
+	"			break;\n"
+	"		if (i < 1)\n"
+	"			continue;\n"
+	"		n += 1;\n"
+	"	}\n"
+	"	float f = firstover(v);\n"
+	"	Oi = Os;\n"
+	"	Ci = Os * Cs * Kd * diffuse(faceforward(normalize(N), I)) * (1 + n + f);\n"
+	"}\n",
+
 	/* E and time only in static code, but the lights read them (eyelight) */
 	"surface eyed(float Kd = 0.8)\n"
 	"{\n"
