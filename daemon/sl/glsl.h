@@ -189,5 +189,12 @@ char *sl_glsl_emit_imager(const struct sl_program *im, enum sl_global *globals, 
  * The two forms never meet, and neither contains "__".
  */
 void sl_glsl_param_uniform(char *out, size_t cap, int light, const char *name);
+/**
+ * The uniform mat4 that holds, for light @light, the space its string
+ * parameter @param names when a transform names the space by it: that space
+ * -> current. "l<k>S" and the name with each character but letters and
+ * digits as "_%02x" (hex): no parameter's uniform has that form.
+ */
+void sl_glsl_space_uniform(char *out, size_t cap, int light, const char *param);
 
 #endif
