@@ -1945,13 +1945,15 @@ static void call_texmap(struct glsl_gen *g, const struct sl_insn *in, int id)
 
 /*
  * A light's texture() of four s, t corners or environment() of four
- * directions: its filter region needs no derivative, so it is a map site
- * off derivative stencils too.
+ * directions of a map a string parameter or a constant names: its filter
+ * region needs no derivative, so it is a map site off derivative stencils
+ * too.
  */
 static bool corners_given(struct glsl_gen *g, const struct sl_insn *in, int id)
 {
 	const struct sl_program *prog = g->cur->prog;
-	if (g->cur->light < 0)
+	if (g->cur->light < 0 ||
+	    !(sl_glsl_cstr(g, in->args[0]) || sl_glsl_string_param(g, in->args[0])))
 		return false;
 	int ncoord = 0;
 	while (2 + ncoord < (int)in->nargs && prog->regs[in->args[2 + ncoord]].type != SL_TYPE_STRING)
