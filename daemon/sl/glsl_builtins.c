@@ -26,6 +26,7 @@
 #include "glsl_impl.h"
 #include "mathlib.h"
 
+#include <ctype.h>
 #include <regex.h>
 #include <stdlib.h>
 #include <string.h>
@@ -1400,6 +1401,31 @@ static void call_comp(struct glsl_gen *g, const struct sl_insn *in)
 }
 
 /* ---- coordinate systems ---- */
+
+void sl_glsl_space_uniform(char *out, size_t cap, int light, const char *param)
+{
+	/* "l<k>S": never a parameter's uniform ("l<k>_NAME" or "l<k>U..."), no "__" */
+	size_t n = (size_t)snprintf(out, cap, "l%dS", light);
+	for (const char *c = param; *c && n + 3 < cap; c++) {
+		if (isalnum((unsigned char)*c))
+			out[n++] = *c;
+		else
+			n += (size_t)snprintf(out + n, cap - n, "_%02x", (unsigned char)*c);
+	}
+	out[n < cap ? n : cap - 1] = 0;
+}
+
+const char *sl_glsl_space_param(struct glsl_gen *g, const char *param)
+{
+	char u[320];
+	sl_glsl_space_uniform(u, sizeof(u), g->cur->light, param);
+	char decl[340];
+	snprintf(decl, sizeof(decl), "uniform mat4 %s;\n", u);
+	struct rl_strbuf *b = &g->sec[GS_UNIFORMS];
+	if (!b->data || !strstr(b->data, decl))
+		rl_strbuf_puts(b, decl);
+	return SL_GLSL_FMT(g, "%s", u);
+}
 
 /*
  * The matrix of space register @r (that space -> current) as a GLSL
