@@ -37,6 +37,7 @@
 #include "shadowrender.h"
 #include "shotfile.h"
 #include "shotmeta.h"
+#include "strbuf.h"
 #include "builtin.h"
 #include "spec.h"
 #include "texmap.h"
@@ -167,6 +168,7 @@ struct gpu_shot {
 	cJSON *meta;
 	struct reyes_texsys *tex;
 	struct gpu_texmaps *texmaps;   /* the texture and environment maps lights read */
+	struct rl_strbuf space_warned; /* "light\tspace\n" of each unknown space warned about */
 	uint32_t width, height;
 	float w2c[16], c2w[16];
 	uint64_t nsamples;
@@ -363,6 +365,65 @@ static void set_uniforms(struct gpu_program *gp, const struct sl_glsl_layout *la
 		else if (tot <= MAX_PARAM_FLOATS)
 			gpu_uniform_float(gp, name, st->v + at, (int)tot);
 		at += tot;
+	}
+}
+
+/*
+ * The space a light's string parameter names, for transforms that name it
+ * by the parameter: that space -> current, as the CPU's light host resolves
+ * it (sl/lighthost.c with the shot's spaces: "world", the light's
+ * "shader"; "current", "camera" and "" are the identity). False for any
+ * other name: the identity, as on the CPU.
+ */
+static bool space_matrix(const struct gpu_shot *s, const struct light *L, const char *name,
+			 float m[16])
+{
+	static const float identity[16] = { 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 };
+	memcpy(m, identity, sizeof(identity));
+	if (!strcmp(name, "world"))
+		memcpy(m, s->w2c, sizeof(identity));
+	else if (!strcmp(name, "shader"))
+		memcpy(m, L->to_camera, sizeof(identity));
+	else
+		return !*name || !strcmp(name, "current") || !strcmp(name, "camera");
+	return true;
+}
+
+/* A space the preview does not know, once per light and name. */
+static void warn_space(struct gpu_shot *s, const struct light *L, const char *name)
+{
+	char key[600];
+	snprintf(key, sizeof(key), "%s\t%s\n", L->name, name);
+	if (strstr(rl_strbuf_str(&s->space_warned), key))
+		return;
+	rl_strbuf_puts(&s->space_warned, key);
+	fprintf(s->diag, "relight: warning: %s: light '%s' names coordinate system '%s', which "
+		"the preview does not know: the identity is used, as in preview --cpu\n", s->path,
+		L->name, name);
+}
+
+/*
+ * The spaces light @L's string parameters (values @st) name, as light @j of
+ * kernel program @gp: the uniforms of the parameters its transforms name a
+ * space by (the others are not in the program, and not set).
+ */
+static void set_spaces(struct gpu_shot *s, struct gpu_program *gp, const struct light *L,
+		       const struct lstate *st, int j)
+{
+	const struct sl_program *lp = s->lshaders[L->shader].prog;
+	uint32_t si = 0;
+	for (uint32_t k = 0; k < lp->nparams; k++) {
+		if (lp->regs[lp->params[k].reg].type != SL_TYPE_STRING)
+			continue;
+		if (si < st->ns) {
+			float m[16];
+			bool known = space_matrix(s, L, st->s[si], m);
+			char name[320];
+			sl_glsl_space_uniform(name, sizeof(name), j, lp->params[k].name);
+			if (gpu_uniform_mat4(gp, name, m) && !known)
+				warn_space(s, L, st->s[si]);
+		}
+		si++;
 	}
 }
 
@@ -619,6 +680,7 @@ static bool shade_pass(struct gpu_shot *s, struct light *L, const struct lstate 
 		if (L) {
 			set_uniforms(k->prog, &k->layout, lp, st, 0);
 			gpu_uniform_mat4(k->prog, "l0_shader", L->to_camera);
+			set_spaces(s, k->prog, L, st, 0);
 		}
 		gpu_uniform_mat4(k->prog, "space_world", s->w2c);
 		struct gpu_binding b[2 + 64];
@@ -716,6 +778,7 @@ static void batch_uniforms(struct gpu_shot *s, struct kernel *k, struct light *c
 		set_uniforms(k->prog, &k->layout, lp, &L->cur, (int)j);
 		snprintf(name, sizeof(name), "l%u_shader", j);
 		gpu_uniform_mat4(k->prog, name, L->to_camera);
+		set_spaces(s, k->prog, L, &L->cur, (int)j);
 	}
 	gpu_uniform_mat4(k->prog, "space_world", s->w2c);
 	gpu_uniform_int(k->prog, "u_n", (int)n);
@@ -2089,6 +2152,7 @@ void gpu_shot_close(struct gpu_shot *s)
 	gpu_buffer_destroy(s->px8);
 	gpu_buffer_destroy(s->px16);
 	gpu_texmaps_destroy(s->texmaps);
+	rl_strbuf_finish(&s->space_warned);
 	reyes_texsys_destroy(s->tex);
 	graph_destroy(s->graph);
 	cJSON_Delete(s->meta);
@@ -2746,6 +2810,7 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 		struct kernel *k = &sf->lk[L->shader];
 		set_uniforms(k->prog, &k->layout, s->lshaders[L->shader].prog, &L->cur, 0);
 		gpu_uniform_mat4(k->prog, "l0_shader", L->to_camera);
+		set_spaces(s, k->prog, L, &L->cur, 0);
 		gpu_uniform_mat4(k->prog, "space_world", s->w2c);
 		if (sf->nparamsets)
 			set_uniforms(k->prog, &k->layout, sf->spec->dynamic, &sf->pvals[0], -1);

@@ -672,15 +672,17 @@ static bool prepare(struct glsl_gen *g, struct glsl_prog *p, const struct sl_pro
 	p->exits = rl_arena_alloc(g->arena, n + 1);
 	p->loopcont = rl_arena_alloc(g->arena, (n + 1) * sizeof(*p->loopcont));
 	p->declared = rl_arena_alloc(g->arena, n + 1);
+	/* Copies and map sites are known off stencils too: a light's
+	 * environment() of four directions needs no derivative. */
+	p->copy_of = rl_arena_alloc(g->arena, (nr + 1) * sizeof(*p->copy_of));
+	p->site = rl_arena_alloc(g->arena, (n + 1) * sizeof(*p->site));
+	p->msite = rl_arena_alloc(g->arena, (n + 1) * sizeof(*p->msite));
+	for (uint32_t i = 0; i <= n; i++)
+		p->site[i] = p->msite[i] = -1;
 	if (g->stencil) {
 		p->cls = rl_arena_alloc(g->arena, nr + 1);
 		p->need = rl_arena_alloc(g->arena, nr + 1);
 		p->mdecl = rl_arena_alloc(g->arena, nr + 1);
-		p->copy_of = rl_arena_alloc(g->arena, (nr + 1) * sizeof(*p->copy_of));
-		p->site = rl_arena_alloc(g->arena, (n + 1) * sizeof(*p->site));
-		p->msite = rl_arena_alloc(g->arena, (n + 1) * sizeof(*p->msite));
-		for (uint32_t i = 0; i <= n; i++)
-			p->site[i] = p->msite[i] = -1;
 	}
 	for (uint32_t i = 0; i <= n; i++) {
 		p->target[i] = -1;
@@ -1986,6 +1988,20 @@ static void emit_moved(struct glsl_gen *g, const struct sl_insn *in)
 	}
 }
 
+const char *sl_glsl_string_param(struct glsl_gen *g, int32_t r)
+{
+	struct glsl_prog *p = g->cur;
+	const struct sl_program *prog = p->prog;
+	for (int hop = 0; hop < 16 && r >= 0; hop++) {
+		for (uint32_t k = 0; k < prog->nparams; k++)
+			if (prog->params[k].reg == r && prog->regs[r].type == SL_TYPE_STRING &&
+			    !prog->regs[r].arraylen)
+				return prog->params[k].name;
+		r = p->copy_of ? p->copy_of[r] : -1;
+	}
+	return NULL;
+}
+
 /*
  * The map a lookup names: a string parameter of its program (through
  * copies) in *param, or a constant in *name. False (an error) for neither.
@@ -1993,17 +2009,7 @@ static void emit_moved(struct glsl_gen *g, const struct sl_insn *in)
 static bool site_name(struct glsl_gen *g, const struct sl_insn *in, const char **param,
 		      const char **name)
 {
-	struct glsl_prog *p = g->cur;
-	const struct sl_program *prog = p->prog;
-	*param = NULL;
-	int32_t r = in->args[0];
-	for (int hop = 0; hop < 16 && r >= 0 && !*param; hop++) {
-		for (uint32_t k = 0; k < prog->nparams && !*param; k++)
-			if (prog->params[k].reg == r && prog->regs[r].type == SL_TYPE_STRING &&
-			    !prog->regs[r].arraylen)
-				*param = prog->params[k].name;
-		r = p->copy_of[r];
-	}
+	*param = sl_glsl_string_param(g, in->args[0]);
 	*name = *param ? NULL : sl_glsl_cstr(g, in->args[0]);
 	if (*param || *name)
 		return true;

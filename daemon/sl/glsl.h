@@ -152,9 +152,13 @@ struct sl_glsl_layout {
  * samplerBuffer "u_map<k>" (one R32F buffer: a header with the level table
  * and wrap modes, then every level, row-major, channels interleaved, as
  * glsl_texmap.c says and gpu/texmap.c writes; a buffer of zeros is no map,
- * the fill), filtered as render/texture.c filters. Without input_steps they read no file: a name
- * known only at run time gives the fill (a warning), a constant one is an
- * error; shadow() is treated the same way.
+ * the fill), filtered as render/texture.c filters; so do a light's
+ * texture() of four s, t corners and environment() of four directions
+ * without input_steps. Otherwise, without input_steps, they read no file: a
+ * name known only at run time gives the fill (a warning), a constant one is
+ * an error; shadow() is treated the same way. A space a light's transform
+ * names by its string parameter P is the uniform mat4 sl_glsl_space_uniform()
+ * names (that space -> current).
  * Every built-in the code uses is emitted with the interpreter's numerics.
  * Returns the source (free() it) and fills @layout (free with
  * sl_glsl_layout_finish), or NULL with "FILE:LINE:COL: error: ..." on @diag
@@ -189,5 +193,12 @@ char *sl_glsl_emit_imager(const struct sl_program *im, enum sl_global *globals, 
  * The two forms never meet, and neither contains "__".
  */
 void sl_glsl_param_uniform(char *out, size_t cap, int light, const char *name);
+/**
+ * The uniform mat4 that holds, for light @light, the space its string
+ * parameter @param names when a transform names the space by it: that space
+ * -> current. "l<k>S" and the name with each character but letters and
+ * digits as "_%02x" (hex): no parameter's uniform has that form.
+ */
+void sl_glsl_space_uniform(char *out, size_t cap, int light, const char *param);
 
 #endif

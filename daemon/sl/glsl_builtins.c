@@ -26,6 +26,7 @@
 #include "glsl_impl.h"
 #include "mathlib.h"
 
+#include <ctype.h>
 #include <regex.h>
 #include <stdlib.h>
 #include <string.h>
@@ -1401,41 +1402,76 @@ static void call_comp(struct glsl_gen *g, const struct sl_insn *in)
 
 /* ---- coordinate systems ---- */
 
-/*
- * The matrix of (from -> to) as a GLSL expression, NULL for the identity;
- * @from and @to are space names (NULL: none), @m a matrix expression that
- * takes the place of "to" (NULL: none).
- */
-static const char *space_product(struct glsl_gen *g, const struct sl_insn *in, const char *from,
-				 const char *to, const char *m)
+void sl_glsl_space_uniform(char *out, size_t cap, int light, const char *param)
 {
-	const char *a = from ? sl_glsl_space(g, in, from) : NULL;
-	const char *b = m;
-	if (!b && to) {
-		const char *s = sl_glsl_space(g, in, to);
-		if (s) {
-			sl_glsl_need(g, GH_INVERSE);
-			b = SL_GLSL_FMT(g, "rl_inverse(%s)", s);
-		}
+	/* "l<k>S": never a parameter's uniform ("l<k>_NAME" or "l<k>U..."), no "__" */
+	size_t n = (size_t)snprintf(out, cap, "l%dS", light);
+	for (const char *c = param; *c && n + 3 < cap; c++) {
+		if (isalnum((unsigned char)*c))
+			out[n++] = *c;
+		else
+			n += (size_t)snprintf(out + n, cap - n, "_%02x", (unsigned char)*c);
 	}
-	if (a && b)
-		return SL_GLSL_FMT(g, "rl_fin(%s * %s)", b, a);
-	return a ? a : b;
+	out[n < cap ? n : cap - 1] = 0;
 }
 
-static const char *space_name(struct glsl_gen *g, const struct sl_insn *in, int32_t r)
+const char *sl_glsl_space_param(struct glsl_gen *g, const char *param)
 {
+	char u[320];
+	sl_glsl_space_uniform(u, sizeof(u), g->cur->light, param);
+	char decl[340];
+	snprintf(decl, sizeof(decl), "uniform mat4 %s;\n", u);
+	struct rl_strbuf *b = &g->sec[GS_UNIFORMS];
+	if (!b->data || !strstr(b->data, decl))
+		rl_strbuf_puts(b, decl);
+	return SL_GLSL_FMT(g, "%s", u);
+}
+
+/*
+ * The matrix of space register @r (that space -> current) as a GLSL
+ * expression in *m, NULL for the identity. A light's string parameter names
+ * a space the runtime binds as a uniform when the light is bound (an edit of
+ * it rebinds); any other name not known here is a warning in a light.
+ * False (an error) for a name the GPU cannot take.
+ */
+static bool space_of(struct glsl_gen *g, const struct sl_insn *in, int32_t r, const char **m)
+{
+	*m = NULL;
 	const char *s = sl_glsl_cstr(g, r);
-	/* In a light, as for its maps: what the GPU cannot follow yet is a warning
-	 * (a map's direction, such as envlight's envspace, goes to no map). */
-	if (!s && g->cur->light >= 0) {
-		sl_glsl_warning(g, in, "a coordinate system named by a variable in a light shader: "
-				"the GPU uses \"current\"");
-		return "";
+	if (s) {
+		*m = sl_glsl_space(g, in, s);
+		return true;
 	}
-	if (!s)
-		sl_glsl_error(g, in, "coordinate system names must be constant strings on the GPU");
-	return s;
+	const char *param = g->cur->light >= 0 ? sl_glsl_string_param(g, r) : NULL;
+	if (param) {
+		*m = sl_glsl_space_param(g, param);
+		return true;
+	}
+	if (g->cur->light >= 0) {
+		sl_glsl_warning(g, in, "a coordinate system named by a variable that is not a "
+				"parameter in a light shader: the GPU uses \"current\"");
+		return true;
+	}
+	sl_glsl_error(g, in, "coordinate system names must be constant strings on the GPU");
+	return false;
+}
+
+/*
+ * The matrix of (from -> to) as a GLSL expression, NULL for the identity;
+ * @a is from's matrix (from -> current), @b the matrix of "to" (to ->
+ * current), @m a matrix expression that takes the place of current -> to
+ * (NULL: none).
+ */
+static const char *space_product(struct glsl_gen *g, const char *a, const char *b,
+				 const char *m)
+{
+	if (!m && b) {
+		sl_glsl_need(g, GH_INVERSE);
+		m = SL_GLSL_FMT(g, "rl_inverse(%s)", b);
+	}
+	if (a && m)
+		return SL_GLSL_FMT(g, "rl_fin(%s * %s)", m, a);
+	return a ? a : m;
 }
 
 /* transform / vtransform / ntransform: (to, v), (from, to, v), (m, v), (from, m, v). */
@@ -1455,13 +1491,13 @@ static void call_transform(struct glsl_gen *g, const struct sl_insn *in, int id)
 			kind = 2;
 	}
 	const char *from = NULL, *to = NULL, *m = NULL;
-	if (na == 3 && !(from = space_name(g, in, a[0])))
+	if (na == 3 && !space_of(g, in, a[0], &from))
 		return;
 	if (ncomp(g, last) == 16)
 		m = op(g, last, 0);
-	else if (!(to = space_name(g, in, last)))
+	else if (!space_of(g, in, last, &to))
 		return;
-	const char *M = space_product(g, in, from, to, m);
+	const char *M = space_product(g, from, to, m);
 	int nd = ncomp(g, in->dst);
 	if (!M) {
 		set_dst(g, in, fit3(g, nd, op(g, val, 3)));
@@ -1477,10 +1513,9 @@ static void call_spacematrix(struct glsl_gen *g, const struct sl_insn *in)
 {
 	if (in->dst < 0 || !need_args(g, in, 2))
 		return;
-	const char *name = space_name(g, in, in->args[0]);
-	if (!name)
+	const char *s;
+	if (!space_of(g, in, in->args[0], &s))
 		return;
-	const char *s = sl_glsl_space(g, in, name);
 	const char *m = op(g, in->args[1], 16);
 	set_dst(g, in, s ? SL_GLSL_FMT(g, "rl_fin(%s * %s)", s, m) : m);
 }
@@ -1935,6 +1970,24 @@ static void call_texmap(struct glsl_gen *g, const struct sl_insn *in, int id)
 }
 
 /*
+ * A light's texture() of four s, t corners or environment() of four
+ * directions of a map a string parameter or a constant names: its filter
+ * region needs no derivative, so it is a map site off derivative stencils
+ * too.
+ */
+static bool corners_given(struct glsl_gen *g, const struct sl_insn *in, int id)
+{
+	const struct sl_program *prog = g->cur->prog;
+	if (g->cur->light < 0 ||
+	    !(sl_glsl_cstr(g, in->args[0]) || sl_glsl_string_param(g, in->args[0])))
+		return false;
+	int ncoord = 0;
+	while (2 + ncoord < (int)in->nargs && prog->regs[in->args[2 + ncoord]].type != SL_TYPE_STRING)
+		ncoord++;
+	return ncoord >= (id == SL_BI_TEXTURE ? 8 : 4);
+}
+
+/*
  * texture / environment / shadow / textureinfo: only the empty name, the
  * "no map" default of texture parameters, gives what the interpreter gives
  * for it (the fill value; textureinfo: not found).
@@ -1948,7 +2001,8 @@ static void call_texture(struct glsl_gen *g, const struct sl_insn *in, int id)
 		call_shadow(g, in);
 		return;
 	}
-	if ((id == SL_BI_TEXTURE || id == SL_BI_ENVIRONMENT) && g->stencil && !(name && !*name)) {
+	if ((id == SL_BI_TEXTURE || id == SL_BI_ENVIRONMENT) && !(name && !*name) &&
+	    (g->stencil || corners_given(g, in, id))) {
 		call_texmap(g, in, id);
 		return;
 	}

@@ -177,6 +177,11 @@ int sl_glsl_shadow_site(struct glsl_gen *g, const struct sl_insn *in);
 
 /** The map site index of texture() or environment() CALL @in (@kind), adding it (-1 on errors). */
 int sl_glsl_map_site(struct glsl_gen *g, const struct sl_insn *in, enum sl_glsl_map_kind kind);
+/* The string parameter register @r holds (through copies), or NULL. */
+const char *sl_glsl_string_param(struct glsl_gen *g, int32_t r);
+/* The uniform mat4 of the space a light's string parameter @param names
+ * (that space -> current), declared on first use; the runtime binds it. */
+const char *sl_glsl_space_param(struct glsl_gen *g, const char *param);
 
 /** Floats per element of register @r (strings: 1, a token id). */
 int sl_glsl_ncomp(const struct sl_program *prog, int32_t r);
