@@ -530,7 +530,7 @@ FrameEnd
            props="\n".join(props), people="\n".join(people))
 write("examples/crowd/crowd.rib", crowd)
 
-# ---- textured_lights: slides, a cookie, a projector and an environment-coloured light ----
+# ---- textured_lights: slides, a cookie, a projector, environment lights, fog, an imager ----
 def pattern_frame(n, display, width, height, cells, filt="\"box\" 1 1"):
     """A frame that renders colour cells to @display (@filt softens their edges): an
     image for MakeTexture."""
@@ -576,7 +576,9 @@ maps = "##RenderMan RIB\n" \
 write("examples/textured_lights/maps/maps.rib", maps)
 textured = """##RenderMan RIB
 # Lights that read textures: an uberlight with a slide, a spot through a cookie (gobo), a
-# slide projector, and a point light coloured by a latitude-longitude environment map,
+# slide projector, a point light coloured by a latitude-longitude environment map and an
+# environment light (envlight: the irradiance of the same map), under thin fog (RISpec's
+# fog as the atmosphere) and composited over a night blue by RISpec's background imager;
 # 320x180 at 2x2 samples. The pictures are maps/*.exr (maps/maps.rib renders them);
 # MakeTexture and MakeLatLongEnvironment turn them into maps in the current directory.
 version 3.04
@@ -590,6 +592,7 @@ FrameBegin 1
   PixelFilter "gaussian" 2 2
   Projection "perspective" "fov" 45
   Display "textured_lights.exr" "file" "rgba"
+  Imager "background" "color bgcolor" [0.05 0.07 0.14]
   %(cam)s
   WorldBegin
     LightSource "ambientlight" 1 "intensity" 0.05
@@ -604,7 +607,9 @@ FrameBegin 1
     LightSource "projector" 4 "intensity" 14 "from" [0.3 2.2 -1.2] "to" [0 1.6 6]
         "fov" 0.5 "aspect" 1.5 "slidename" "slide_b.tx"
     LightSource "envcolorlight" 5 "intensity" 1.2 "from" [-0.6 1.1 2.4] "envname" "env.tx"
+    LightSource "envlight" 6 "intensity" 0.12 "envname" "env.tx" "samples" 16
     Surface "plastic" "Kd" 0.75 "Ks" 0.2 "roughness" 0.15
+    Atmosphere "fog" "distance" 40 "background" [0.05 0.07 0.14]
     AttributeBegin
       Color [0.8 0.8 0.78]
       Polygon "P" [-5 0 -3  -5 0 7  5 0 7  5 0 -3]
