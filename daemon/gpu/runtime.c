@@ -2254,6 +2254,28 @@ static void editing(struct gpu_shot *s, struct light *L)
 	L->frozen = false;
 }
 
+/*
+ * After a parameter of @L was set on its interpreter: its parameters (and the
+ * defaults that depend on them) evaluated again into its state, and the
+ * light marked edited.
+ */
+static bool reevaluate(struct gpu_shot *s, struct light *L, const struct sl_program *lp,
+		       char *err, size_t errlen)
+{
+	struct lstate next = { 0 };
+	lstate_copy(&next, &L->cur);
+	if (!eval_params(L->init, lp, L->to_camera, s->w2c, &next)) {
+		lstate_free(&next);
+		errorf(err, errlen, "light '%s': its parameter defaults failed", L->name);
+		return false;
+	}
+	lstate_free(&L->cur);
+	L->cur = next;
+	editing(s, L);
+	touched(s, L);
+	return true;
+}
+
 bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
 		  const float *values, uint32_t n, char *err, size_t errlen)
 {
@@ -2283,18 +2305,7 @@ bool gpu_shot_set(struct gpu_shot *s, const char *light, const char *param,
 		errorf(err, errlen, "light '%s': parameter '%s' cannot be set", L->name, param);
 		return false;
 	}
-	struct lstate next = { 0 };
-	lstate_copy(&next, &L->cur);
-	if (!eval_params(L->init, lp, L->to_camera, s->w2c, &next)) {
-		lstate_free(&next);
-		errorf(err, errlen, "light '%s': its parameter defaults failed", L->name);
-		return false;
-	}
-	lstate_free(&L->cur);
-	L->cur = next;
-	editing(s, L);
-	touched(s, L);
-	return true;
+	return reevaluate(s, L, lp, err, errlen);
 }
 
 bool gpu_shot_param_is_string(const struct gpu_shot *s, const char *light, const char *param)
@@ -2336,18 +2347,7 @@ bool gpu_shot_set_string(struct gpu_shot *s, const char *light, const char *para
 		errorf(err, errlen, "light '%s': parameter '%s' cannot be set", L->name, param);
 		return false;
 	}
-	struct lstate next = { 0 };
-	lstate_copy(&next, &L->cur);
-	if (!eval_params(L->init, lp, L->to_camera, s->w2c, &next)) {
-		lstate_free(&next);
-		errorf(err, errlen, "light '%s': its parameter defaults failed", L->name);
-		return false;
-	}
-	lstate_free(&L->cur);
-	L->cur = next;
-	editing(s, L);
-	touched(s, L);
-	return true;
+	return reevaluate(s, L, lp, err, errlen);
 }
 
 char *gpu_shot_get_string(const struct gpu_shot *s, const char *light, const char *param)

@@ -45,6 +45,7 @@
 #include <math.h>
 #include <stdarg.h>
 #include <stdlib.h>
+#include <stddef.h>
 #include <string.h>
 
 #define NONE UINT32_MAX
@@ -2252,64 +2253,64 @@ static void fill_strings(struct glsl_gen *g, struct sl_glsl_layout *layout)
 	layout->nstrings = (uint32_t)n;
 }
 
+/*
+ * A copy of @n sites of @size bytes each whose strings, the `param` and `name`
+ * fields at @param_off and @name_off, are copied into the same block after
+ * the array: freeing the block frees them all.
+ */
+static void *copy_sites(const void *sites, size_t n, size_t size, size_t param_off,
+			size_t name_off)
+{
+	const size_t offs[2] = { param_off, name_off };
+	size_t chars = 0;
+	for (size_t i = 0; i < n; i++)
+		for (int f = 0; f < 2; f++) {
+			const char *str;
+			memcpy(&str, (const char *)sites + i * size + offs[f], sizeof(str));
+			chars += str ? strlen(str) + 1 : 0;
+		}
+	char *block = rl_xmalloc(n * size + chars + 1);
+	memcpy(block, sites, n * size);
+	char *c = block + n * size;
+	for (size_t i = 0; i < n; i++)
+		for (int f = 0; f < 2; f++) {
+			const char *str;
+			memcpy(&str, block + i * size + offs[f], sizeof(str));
+			if (!str)
+				continue;
+			size_t len = strlen(str) + 1;
+			memcpy(c, str, len);
+			memcpy(block + i * size + offs[f], &c, sizeof(c));
+			c += len;
+		}
+	return block;
+}
+
 /* The shadow() sites, their strings in the same block as the array (layout->shadows owns it). */
 static void fill_sites(struct glsl_gen *g, struct sl_glsl_layout *layout)
 {
-	size_t n = g->sites.len, chars = 0;
+	size_t n = g->sites.len;
 	if (!n)
 		return;
-	for (size_t i = 0; i < n; i++) {
-		const struct sl_glsl_shadow_site *st = &g->sites.data[i];
-		chars += (st->param ? strlen(st->param) + 1 : 0) + (st->name ? strlen(st->name) + 1 : 0);
-	}
-	char *block = rl_xmalloc(n * sizeof(struct sl_glsl_shadow_site) + chars + 1);
-	struct sl_glsl_shadow_site *tab = (struct sl_glsl_shadow_site *)(void *)block;
-	char *c = block + n * sizeof(struct sl_glsl_shadow_site);
-	for (size_t i = 0; i < n; i++) {
-		tab[i] = g->sites.data[i];
-		const char **fields[2] = { &tab[i].param, &tab[i].name };
-		for (int f = 0; f < 2; f++) {
-			if (!*fields[f])
-				continue;
-			size_t len = strlen(*fields[f]) + 1;
-			memcpy(c, *fields[f], len);
-			*fields[f] = c;
-			c += len;
-		}
-	}
-	layout->shadows = tab;
+	layout->shadows = copy_sites(g->sites.data, n, sizeof(struct sl_glsl_shadow_site),
+				     offsetof(struct sl_glsl_shadow_site, param),
+				     offsetof(struct sl_glsl_shadow_site, name));
 	layout->nshadows = (uint32_t)n;
 }
 
 /* The map sites (layout->maps owns their strings) and their samplers' units, after the shadow sites'. */
 static void fill_map_sites(struct glsl_gen *g, struct sl_glsl_layout *layout)
 {
-	size_t n = g->msites.len, chars = 0;
+	size_t n = g->msites.len;
 	if (!n)
 		return;
-	for (size_t i = 0; i < n; i++) {
-		const struct sl_glsl_map_site *st = &g->msites.data[i];
-		chars += (st->param ? strlen(st->param) + 1 : 0) + (st->name ? strlen(st->name) + 1 : 0);
+	for (size_t i = 0; i < n; i++)
 		rl_strbuf_printf(&g->sec[GS_UNIFORMS],
 				 "layout(binding = %u) uniform samplerBuffer u_map%zu;\n",
 				 SL_GLSL_SHADOW_UNIT0 + (unsigned)g->sites.len + (unsigned)i, i);
-	}
-	char *block = rl_xmalloc(n * sizeof(struct sl_glsl_map_site) + chars + 1);
-	struct sl_glsl_map_site *tab = (struct sl_glsl_map_site *)(void *)block;
-	char *c = block + n * sizeof(struct sl_glsl_map_site);
-	for (size_t i = 0; i < n; i++) {
-		tab[i] = g->msites.data[i];
-		const char **fields[2] = { &tab[i].param, &tab[i].name };
-		for (int f = 0; f < 2; f++) {
-			if (!*fields[f])
-				continue;
-			size_t len = strlen(*fields[f]) + 1;
-			memcpy(c, *fields[f], len);
-			*fields[f] = c;
-			c += len;
-		}
-	}
-	layout->maps = tab;
+	layout->maps = copy_sites(g->msites.data, n, sizeof(struct sl_glsl_map_site),
+				  offsetof(struct sl_glsl_map_site, param),
+				  offsetof(struct sl_glsl_map_site, name));
 	layout->nmaps = (uint32_t)n;
 }
 
