@@ -516,4 +516,29 @@ void reyes_ri_motion_end(struct ri *ri, bool apply);
 /** The object definition closes (or unwinds). */
 void reyes_ri_object_end(struct ri *ri);
 
+/* ---- ri_prims.c: for the primitives of other files --------------------------------- */
+
+/* As in ri_prims.c: where a primitive may go, argument arrays, counts, points, variables. */
+bool reyes_ri_geometry_ok(struct ri *ri, const struct rib_request *r);
+bool reyes_ri_array_arg(struct ri *ri, const struct rib_request *r, uint32_t i);
+uint32_t *reyes_ri_uint_values(struct ri *ri, const struct rib_value *v, const char *req,
+			       const char *what, uint64_t limit);
+bool reyes_ri_check_counts(struct ri *ri, const struct rib_request *r, const struct rib_value *v,
+			   const uint32_t *c, uint32_t min, const char *what, uint64_t *sum);
+bool reyes_ri_point_count(struct ri *ri, const struct rib_request *r, uint32_t *np);
+/* The primitive variables of @r (with "P"), sizes[class] items each. */
+bool reyes_ri_prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t sizes[5],
+			struct reyes_prim *p);
+struct reyes_prim *reyes_ri_new_prim(struct ri *ri, enum reyes_prim_kind kind);
+/* Into the world, the object being defined, or the motion block. */
+void reyes_ri_emit_prim(struct ri *ri, const struct rib_request *r, struct reyes_prim *p);
+
+/* ---- ri_subdiv.c -------------------------------------------------------------------- */
+
+/** SubdivisionMesh: a Catmull-Clark mesh with its tags. */
+void reyes_ri_req_subdivision_mesh(struct ri *ri, const struct rib_request *r);
+
+/** Do two motion samples of subdivision meshes agree in faces and tags? */
+bool reyes_ri_subdiv_same(const struct reyes_prim *a, const struct reyes_prim *b);
+
 #endif

@@ -1047,6 +1047,8 @@ static const char *topology_mismatch(const struct reyes_prim *a, const struct re
 		    a->uperiodic != b->uperiodic || a->vperiodic != b->vperiodic ||
 		    a->heightfield != b->heightfield)) {
 		return "patch mesh";
+	} else if (a->kind == REYES_SUBDIV && !reyes_ri_subdiv_same(a, b)) {
+		return "subdivision mesh";
 	}
 	if (a->npoints != b->npoints)
 		return "number of points";
@@ -1259,4 +1261,49 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 		q.id = (uint32_t)ri->prims.len;
 		rl_vec_push(ri->prims, q);
 	}
+}
+
+/* ---- for the primitives of other files (ri_subdiv.c) --------------------------------- */
+
+bool reyes_ri_geometry_ok(struct ri *ri, const struct rib_request *r)
+{
+	return geometry_ok(ri, r);
+}
+
+bool reyes_ri_array_arg(struct ri *ri, const struct rib_request *r, uint32_t i)
+{
+	return array_arg(ri, r, i);
+}
+
+uint32_t *reyes_ri_uint_values(struct ri *ri, const struct rib_value *v, const char *req,
+			       const char *what, uint64_t limit)
+{
+	return uint_values(ri, v, req, what, limit);
+}
+
+bool reyes_ri_check_counts(struct ri *ri, const struct rib_request *r, const struct rib_value *v,
+			   const uint32_t *c, uint32_t min, const char *what, uint64_t *sum)
+{
+	return check_counts(ri, r, v, c, min, what, sum);
+}
+
+bool reyes_ri_point_count(struct ri *ri, const struct rib_request *r, uint32_t *np)
+{
+	return point_count(ri, r, false, np);
+}
+
+bool reyes_ri_prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t sizes[5],
+			struct reyes_prim *p)
+{
+	return prim_vars(ri, r, sizes, true, p);
+}
+
+struct reyes_prim *reyes_ri_new_prim(struct ri *ri, enum reyes_prim_kind kind)
+{
+	return new_prim(ri, kind);
+}
+
+void reyes_ri_emit_prim(struct ri *ri, const struct rib_request *r, struct reyes_prim *p)
+{
+	emit_prim(ri, r, p);
 }

@@ -48,6 +48,8 @@ enum {
 	BRACKET_OK = 1 << 1,    /* the numbers may also be written as one [ array ] */
 	NONE_OK = 1 << 2,       /* the numbers may also be left out altogether */
 	PRIMITIVE = 1 << 3,     /* a geometric primitive: an error in it drops it alone */
+	MORE_ARRAYS = 1 << 4,   /* more [ arrays ] may follow the positional arguments
+				   (SubdivisionMesh's tags): the handler checks them */
 };
 
 /*
@@ -156,6 +158,8 @@ static const struct reqdef reqdefs[] = {
 	{"PointsGeneralPolygons", "nloops:I nvertices:I vertices:I", TAKES_PARAMS | PRIMITIVE},
 	{"Patch", "type:s", TAKES_PARAMS | PRIMITIVE},
 	{"PatchMesh", "type:s nu:i uwrap:s nv:i vwrap:s", TAKES_PARAMS | PRIMITIVE},
+	{"SubdivisionMesh", "scheme:s nvertices:I vertices:I",
+	 TAKES_PARAMS | PRIMITIVE | MORE_ARRAYS},
 };
 
 /*
@@ -169,7 +173,7 @@ static const char *const unsupported[] = {
 	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Geometry", "IfBegin",
 	"IfEnd", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
 	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
-	"Shader", "SolidBegin", "SolidEnd", "SubdivisionMesh", "System", "TrimCurve",
+	"Shader", "SolidBegin", "SolidEnd", "System", "TrimCurve",
 };
 
 /* ---- diagnostics ------------------------------------------------------------ */
@@ -1215,6 +1219,12 @@ static bool parse_request(struct rib_reader *r, const struct reqdef *def)
 		for (size_t i = 0; i < nspec; i++)
 			if (!parse_arg(r, def, &spec[i]))
 				return false;
+	}
+	while ((def->flags & MORE_ARRAYS) && peek(r) == T_LBRACK) {
+		struct pvalue v;
+		if (!parse_array(r, &v))
+			return false;
+		rl_vec_push(r->pargs, v);
 	}
 	if (def->flags & TAKES_PARAMS) {
 		if (!parse_params(r, def))

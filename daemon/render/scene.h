@@ -157,6 +157,26 @@ enum reyes_prim_kind {
 	REYES_TORUS,        /* q: majorradius minorradius phimin phimax thetamax */
 	REYES_POLYGONS,     /* Polygon, GeneralPolygon, PointsPolygons, PointsGeneralPolygons */
 	REYES_PATCHES,      /* Patch and PatchMesh, bilinear or bicubic */
+	REYES_SUBDIV,       /* SubdivisionMesh "catmull-clark" (subdiv: geom_subdiv.c) */
+};
+
+/* A Catmull-Clark SubdivisionMesh: its faces and tags (ri_subdiv.c). */
+struct reyes_subdiv {
+	uint64_t serial;                      /* unique in the process: its OpenSubdiv mesh's key */
+	uint32_t nfaces;
+	const uint32_t *nverts;               /* per face (>= 3) */
+	const uint32_t *verts;                /* vertex indices, face after face */
+	uint32_t ncreases;                    /* crease edges (a tag's chain, edge by edge) */
+	const uint32_t *crease_verts;         /* 2 per edge */
+	const float *crease_sharp;
+	uint32_t ncorners;
+	const uint32_t *corner_verts;
+	const float *corner_sharp;
+	uint32_t nholes;
+	const uint32_t *holes;                /* face indices */
+	int interp_boundary;                  /* "interpolateboundary": 0 none, 1 edges and
+						 corners, 2 edges only (prman) */
+	int fvar_boundary;                    /* "facevaryinginterpolateboundary" 0..3, default 1 */
 };
 
 struct reyes_prim {
@@ -182,6 +202,9 @@ struct reyes_prim {
 	/* A height field ("Pz"): the surface's x and y are its u and v over the
 	   whole mesh, z is "P"'s z through the basis (P's x and y are unused). */
 	bool heightfield;
+
+	/* REYES_SUBDIV: the mesh (its faces, creases, corners, holes). */
+	const struct reyes_subdiv *subdiv;
 
 	uint32_t npoints;                     /* vertex positions ("P" count) */
 	const struct reyes_primvar *vars;     /* "P" is always present (vertex point) */
