@@ -533,7 +533,7 @@ static bool sd_positions(const struct sd_dice *d, const struct reyes_patch *pa,
 	return true;
 }
 
-static bool sd_texcoords(const struct sd_dice *d, struct reyes_grid *g, bool *failed)
+static void sd_texcoords(const struct sd_dice *d, struct reyes_grid *g, bool *failed)
 {
 	uint32_t n = d->n;
 	g->Cs = sd_named(d, "Cs", 3, failed);
@@ -541,17 +541,16 @@ static bool sd_texcoords(const struct sd_dice *d, struct reyes_grid *g, bool *fa
 	g->s = sd_named(d, "s", 1, failed);
 	g->t = sd_named(d, "t", 1, failed);
 	if (g->s && g->t)
-		return true;
+		return;
 	float *st = sd_named(d, "st", 2, failed);
 	if (!st)
-		return true;
+		return;
 	if (!g->s && (g->s = malloc(n * sizeof(float))))
 		memcpy(g->s, st, n * sizeof(float));
 	if (!g->t && (g->t = malloc(n * sizeof(float))))
 		memcpy(g->t, st + n, n * sizeof(float));
 	*failed |= !g->s || !g->t;
 	free(st);
-	return true;
 }
 
 bool reyes_subdiv_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
@@ -605,7 +604,7 @@ bool reyes_subdiv_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 		failed = !sd_positions(&d, pa, g, P, P + 3 * (size_t)n, P + 6 * (size_t)n);
 	}
 	if (!failed)
-		failed = !sd_texcoords(&d, g, &failed) || failed;
+		sd_texcoords(&d, g, &failed);
 	if (!failed)
 		failed = !sd_user_vars(&d, g);
 	free(uv);

@@ -15,7 +15,8 @@
 # baked and previewed after light edits (the spot's intensity and colour,
 # the point light's position) with --cpu and on the GPU; both match
 # `relight render` of the RIB edited the same way within 0.1 % mean and 1 %
-# max of the 8-bit range, colour and alpha alike. The shot's shadow geometry
+# max of the 8-bit range, colour and alpha alike (and the mesh shows: the
+# image without it differs by more than 1 % mean). The shot's shadow geometry
 # holds the mesh's micropolygons. Without an EGL context the GPU part skips
 # (exit 77) after the rest has passed.
 source "$(dirname "$0")/lib.sh"
@@ -100,7 +101,9 @@ world() {
     AttributeEnd
 RIB
 }
-cat >"$work/scene.rib" <<RIB
+# scene_rib: the two frames around $(world).
+scene_rib() {
+cat <<RIB
 FrameBegin 1
   Format 256 256 1
   PixelSamples 1 1
@@ -132,6 +135,10 @@ $(world)
   WorldEnd
 FrameEnd
 RIB
+}
+scene_rib >"$work/scene.rib"
+# The same without the mesh: the mesh must show (and shadow) in the image.
+cube="" scene_rib | sed 's/"scene.exr"/"nomesh.exr"/' >"$work/nomesh.rib"
 sed -e 's/"shadowspot" 2 "intensity" 60/"shadowspot" 2 "intensity" 35 "lightcolor" [1 0.8 0.6]/' \
     -e 's/"pointlight" 3 "intensity" 6 "from" \[-4 3 -2\]/"pointlight" 3 "intensity" 6 "from" [-2 4 0]/' \
     "$work/scene.rib" >"$work/edited.rib"
@@ -143,6 +150,15 @@ sets="--set 2.intensity=35 --set 2.lightcolor=1,0.8,0.6 --set 3.from=-2,4,0"
 run "render" bash -c "cd '$work' && '$relight' render -q scene.rib && '$relight' render -q -o ref.exr edited.rib"
 expect_status 0
 expect_empty_stderr
+run "render without the mesh" bash -c "cd '$work' && '$relight' render -q nomesh.rib"
+expect_status 0
+run "the mesh shows" "$relight" diff --json "$work/nomesh.exr" "$work/scene.exr"
+checks=$((checks + 1))
+python3 -c '
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["mean_pct"] > 1, d
+' "$work/stdout" || fail "the image without the mesh is the same: $(head -c 300 "$work/stdout")"
 run "bake" bash -c "cd '$work' && '$relight' bake -q -o scene.shot.exr scene.rib"
 expect_status 0
 run "info" "$relight" info --json "$work/scene.shot.exr"
