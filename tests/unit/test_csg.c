@@ -38,8 +38,13 @@ static double radical_x(void)
 	return (R * R - r * r + d * d) / (2 * d);
 }
 
-/* Render the world body @world; the channel sums of R, G and A (in world area) into @sum. */
-static bool render_sums(const char *world, const char *name, double sum[3])
+/*
+ * Render the world body @world under camera @camera (its projection and
+ * transformation); the channel sums of R, G and A (in screen-window area)
+ * into @sum.
+ */
+static bool render_camera(const char *camera, const char *world, const char *name,
+			  double sum[3])
 {
 	char rib[8192], out[64];
 	snprintf(out, sizeof(out), "%s.exr", name);
@@ -47,16 +52,15 @@ static bool render_sums(const char *world, const char *name, double sum[3])
 		 "Format %d %d 1\n"
 		 "PixelSamples 8 8\n"
 		 "PixelFilter \"box\" 1 1\n"
-		 "Projection \"orthographic\"\n"
 		 "ScreenWindow -1 1 -1 1\n"
 		 "Shutter 0 1\n"
 		 "Display \"%s\" \"file\" \"rgba\" \"string type\" \"float\"\n"
+		 "%s"
 		 "WorldBegin\n"
 		 "  Surface \"constant\"\n"
-		 "  Translate 0 0 5\n"
 		 "%s"
 		 "WorldEnd\n",
-		 N, N, out, world);
+		 N, N, out, camera, world);
 	struct reyes_image im = { 0 };
 	bool ok = render(rib, out, &im);
 	CHECK(ok);
@@ -73,6 +77,14 @@ static bool render_sums(const char *world, const char *name, double sum[3])
 	}
 	reyes_image_finish(&im);
 	return true;
+}
+
+/* The scenes of the header comment: orthographic, the spheres' centres at depth 5. */
+static bool render_sums(const char *world, const char *name, double sum[3])
+{
+	char body[4096];
+	snprintf(body, sizeof(body), "  Translate 0 0 5\n%s", world);
+	return render_camera("Projection \"orthographic\"\n", body, name, sum);
 }
 
 static void check_area(const char *what, double got, double want, double tol)
@@ -198,6 +210,27 @@ static void test_motion(void)
 	check_area("moving A - B", s[2], PI * R * R - segment(R, radical_x()), 0.005);
 }
 
+/*
+ * The eye inside a solid: a 90-degree perspective camera at the centre of
+ * a sphere of radius 10, intersected with a ball of radius 1 at distance
+ * 5 on the axis. The big sphere's first crossing along every ray is an
+ * exit, so the eye is taken as inside it and the intersection is the ball
+ * alone: a disk of radius tan(asin(1/5)) on the screen window [-1, 1]^2.
+ */
+static void test_camera_inside(void)
+{
+	double s[3];
+	if (!render_camera("Projection \"perspective\" \"fov\" 90\n",
+			   "  SolidBegin \"intersection\"\n"
+			   "    SolidBegin \"primitive\" Sphere 10 -10 10 360 SolidEnd\n"
+			   "    SolidBegin \"primitive\" Translate 0 0 5 Sphere 1 -1 1 360 SolidEnd\n"
+			   "  SolidEnd\n",
+			   "inside", s))
+		return;
+	double t = tan(asin(0.2));
+	check_area("eye inside: A & ball", s[2], PI * t * t, 0.005);
+}
+
 int main(void)
 {
 	if (!scene_dir_create("relight-csg"))
@@ -209,6 +242,7 @@ int main(void)
 	RUN(test_nested);
 	RUN(test_transparent);
 	RUN(test_motion);
+	RUN(test_camera_inside);
 	scene_dir_remove();
 	return test_finish();
 }
