@@ -12,7 +12,8 @@
 # edits within 0.1 % mean and 1 % max of the 8-bit range (the solid's
 # visibility is recorded in the indirect framebuffer as the renderer hides
 # it). The bake warns, at the solid, that the GPU's own shadow maps (when
-# the spot light moves) hold the solid without its cut. Without an EGL
+# the spot light moves) hold the solid without its cut, and leaves the
+# subtracted sphere out of the shadow geometry. Without an EGL
 # context the GPU part skips (exit 77) once the rest has passed.
 source "$(dirname "$0")/lib.sh"
 
@@ -27,12 +28,14 @@ run "render" bash -c "cd '$work' && '$relight' render -q -o plain.exr solid.rib"
 expect_status 0
 expect_empty_stderr
 
-# The solid is not its two spheres: without SolidBegin/SolidEnd the bite is a ball.
-grep -v "Solid" "$work/world.rib" >"$work/balls.rib"
-sed -e 's/world.rib/balls.rib/' "$work/solid.rib" >"$work/nosolid.rib"
-run "render without the solid" bash -c "cd '$work' && '$relight' render -q -o balls.exr nosolid.rib"
+# The solid is not its two spheres: without SolidBegin/SolidEnd the bite is
+# a ball (in a folder of its own: its shadow pass writes its own map).
+mkdir -p "$work/balls"
+grep -v "Solid" "$work/world.rib" >"$work/balls/world.rib"
+cp "$work/solid.rib" "$work/balls/"
+run "render without the solid" bash -c "cd '$work/balls' && '$relight' render -q -o balls.exr solid.rib"
 expect_status 0
-run "the cut shows" "$relight" diff --json "$work/plain.exr" "$work/balls.exr"
+run "the cut shows" "$relight" diff --json "$work/plain.exr" "$work/balls/balls.exr"
 checks=$((checks + 1))
 python3 -c '
 import json, sys
@@ -45,6 +48,20 @@ expect_status 0
 run "bake" bash -c "cd '$work' && '$relight' bake -q -o solid.shot.exr solid.rib"
 expect_status 0
 expect_stderr '^\./world\.rib:7: warning: the GPU.s shadow maps of this "difference" solid hold its surfaces without the cuts'
+
+# The subtracted sphere casts no shadow geometry: fewer micropolygons than the two balls'.
+run "bake without the solid" bash -c "cd '$work/balls' && '$relight' bake -q -o balls.shot.exr solid.rib"
+expect_status 0
+run "info" "$relight" info --json "$work/solid.shot.exr"
+cp "$work/stdout" "$work/solid.info.json"
+run "info without the solid" "$relight" info --json "$work/balls/balls.shot.exr"
+checks=$((checks + 1))
+python3 - "$work/solid.info.json" "$work/stdout" <<'PY' || fail "the subtracted sphere is in the shadow geometry"
+import json, sys
+a, b = (json.load(open(f))["shadow_quads"] for f in sys.argv[1:3])
+print("shadow geometry: %d micropolygons with the solid, %d with both balls" % (a, b))
+assert 0 < a < b, (a, b)
+PY
 
 compare() {
 	run "$1 vs render" "$relight" diff --json "$work/ref.exr" "$work/$2"
