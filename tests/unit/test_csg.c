@@ -27,7 +27,7 @@
 
 static const double R = 0.6, r = 0.4, d = 0.6;
 
-/* The area of the segment of a circle of radius @rad beyond a chord at distance @h from its centre. */
+/* The area of a circle's segment (radius @rad) beyond a chord at distance @h from its centre. */
 static double segment(double rad, double h)
 {
 	return rad * rad * acos(h / rad) - h * sqrt(rad * rad - h * h);
