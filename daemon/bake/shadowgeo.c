@@ -103,7 +103,38 @@ struct gather {
 	uint64_t cap_points, cap_quads, cap_object;
 	uint64_t bad_points;         /* not finite: their micropolygons are left out */
 	FILE *diag;
+	const struct reyes_csg *csg;
+	bool warned_csg;
 };
+
+/*
+ * Solids: which micropolygon of a solid bounds it is a question of the
+ * whole ray, not of the micropolygon, so the shadow geometry keeps the
+ * surfaces that can only add to the solid: a leaf on the subtracted side
+ * of a difference is left out, every other kept whole. The solid's volume
+ * lies inside those leaves' union, so a map from them shadows at least
+ * where the solid does: a difference casts as its first child, uncut; an
+ * intersection as the union of its children. A union is exact. Reported
+ * once, at the first such solid.
+ */
+static bool csg_casts(struct gather *gt, const struct reyes_prim *prim)
+{
+	if (!prim->csg_leaf || prim->csg_leaf > gt->csg->nnodes)
+		return true;
+	uint32_t leaf = prim->csg_leaf - 1;
+	if (reyes_csg_union_only(gt->csg, leaf))
+		return true;
+	if (!gt->warned_csg) {
+		const struct reyes_csg_node *root = &gt->csg->nodes[gt->csg->nodes[leaf].root];
+		rib_warning(gt->diag, root->loc,
+			    "the GPU's shadow maps of this \"%s\" solid hold its surfaces without "
+			    "the cuts (its subtracted parts left out, the rest whole): they shadow "
+			    "more than the render's where the cuts show to the light",
+			    reyes_csg_op_name(root->op));
+		gt->warned_csg = true;
+	}
+	return !reyes_csg_subtracted(gt->csg, leaf);
+}
 
 /* Make room for @need elements of @elem bytes in *data (capacity *cap). */
 static bool reserve(void **data, uint64_t *cap, uint64_t need, size_t elem)
@@ -128,7 +159,7 @@ static bool on_grid(void *user, const struct reyes_prim *prim, const float *P, u
 {
 	struct gather *gt = user;
 	struct bake_shadow_geometry *o = gt->out;
-	if (nu < 2 || nv < 2)
+	if (nu < 2 || nv < 2 || !csg_casts(gt, prim))
 		return true;
 	uint64_t n = (uint64_t)nu * nv, nq = (uint64_t)(nu - 1) * (nv - 1);
 	if (o->npoints + n > UINT32_MAX || o->ngrids == UINT32_MAX) {
@@ -195,7 +226,7 @@ bool bake_shadow_geometry(const struct reyes_scene *scene, float rate, FILE *dia
 			(double)rate);
 		return false;
 	}
-	struct gather gt = { .out = out, .diag = diag };
+	struct gather gt = { .out = out, .diag = diag, .csg = &scene->csg };
 	if (!sl_m44_inverse(gt.c2w, scene->opts.world_to_camera)) {
 		fprintf(diag, "relight: error: the camera transform cannot be inverted\n");
 		return false;

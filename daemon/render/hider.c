@@ -89,8 +89,27 @@
  * weights. A vertex whose id would pass 2^32 - 1 drops the micropolygons
  * that use it (reported once). Alpha and depth go through the same
  * arithmetic as in normal mode and come out bit-identical.
+ *
+ * Solids (SolidBegin/SolidEnd, csg.h). A hit of a grid inside a solid
+ * records its leaf and whether the ray enters the leaf there (the
+ * micropolygon faces the camera, flip taken into account: outward normals)
+ * or leaves it; such grids are not culled. Whether a solid's hit is seen
+ * depends on every crossing in front of it, which arrive in any order, so
+ * solid hits never make a sample opaque while it is sampled: they are kept
+ * up to the opaque point of the other hits. Before compositing (both
+ * modes), a sample holding solid hits walks them front to back with a
+ * crossing count per leaf, evaluates the hit's tree before and after each
+ * crossing and unlinks the hits where its value does not change (inner
+ * surfaces, cuts); then its opaque point (and the midpoint depths) are
+ * found again over what is left. A leaf whose first crossing along the ray
+ * is an exit is taken as holding the eye (its count starts at 1): a camera
+ * inside a solid, or a solid cut by the near clipping plane, sees the
+ * solid's far boundary. Grids outside solids cost nothing more (a bucket
+ * with no solid hit skips the pass).
  */
 #include "hider.h"
+
+#include "csg.h"
 
 #include "arena.h"
 
@@ -120,7 +139,10 @@ struct hit {
 	uint32_t next;
 	float c[3], o[3];
 	bool matte;
+	uint32_t csg;         /* 1 + leaf | CSG_ENTER where the ray enters it; 0: in no solid */
 };
+
+#define CSG_ENTER 0x80000000u
 
 /* Record mode: the shading samples a hit interpolates (weight 0: unused). */
 struct hit_ref {
@@ -156,6 +178,7 @@ struct quad {
 	struct edge e[5];     /* around the quad, then the diagonal v0-v2 */
 	struct tri t[2];
 	float x0, y0, x1, y1; /* bound */
+	bool front;           /* faces the camera (flip taken into account) */
 };
 
 struct reyes_hider {
@@ -205,6 +228,15 @@ struct reyes_hider {
 	struct reyes_vis_entry *ent;
 	size_t ent_cap, nent;
 	bool warned_overflow, warned_entries, warned_mode;
+
+	/* solid modeling: the scene's trees, per-leaf scratch of the resolve */
+	const struct reyes_csg *csg;
+	bool csg_bucket;                  /* the bucket has hits of solids */
+	int32_t *csg_count;               /* per node: crossings in front */
+	uint8_t *csg_seen;                /* per node: the sample has crossed the leaf */
+	uint32_t csg_cap;
+	uint32_t *csg_touched;            /* the leaves the current sample crossed */
+	size_t touched_cap;
 };
 
 /* ---- hashing ---- */
@@ -355,6 +387,9 @@ void reyes_hider_destroy(struct reyes_hider *h)
 	free(h->cw);
 	free(h->off);
 	free(h->ent);
+	free(h->csg_count);
+	free(h->csg_seen);
+	free(h->csg_touched);
 	free(h);
 }
 
@@ -481,6 +516,7 @@ void reyes_hider_begin(struct reyes_hider *h, uint32_t px0, uint32_t py0, uint32
 	h->nhits = 0;
 	h->freelist = NIL;
 	h->inserted = 0;
+	h->csg_bucket = false;
 	px1 = px1 < o->xres ? px1 : o->xres;
 	py1 = py1 < o->yres ? py1 : o->yres;
 	if (px0 >= px1 || py0 >= py1) {
@@ -574,6 +610,9 @@ struct mp_src {
 	const struct reyes_hider_grid *g;
 	size_t n;             /* points in the grid: the stride between planes */
 	uint32_t q[4];
+	uint32_t csg;         /* the grid's solid leaf (1 + node), 0: none */
+	bool cull;            /* drop back-facing micropolygons (never in a solid) */
+	bool front;           /* the micropolygon faces the camera */
 };
 
 /* A plane's value at the hit: weighted over the quad's vertices, or vertex (i, j)'s. */
@@ -610,7 +649,8 @@ static void sample_hit(struct reyes_hider *h, struct sample *s, float z, const s
 		return;
 	if (h->o.depthfilter == REYES_DEPTH_MIDPOINT) {
 		hit_opacity(m, w, o);
-		if (o[0] >= thr && o[1] >= thr && o[2] >= thr) {
+		/* a solid's hits count once the sample is resolved (csg_resolve) */
+		if (!m->csg && o[0] >= thr && o[1] >= thr && o[2] >= thr) {
 			if (z < s->zo[0]) {
 				s->zo[1] = s->zo[0];
 				s->zo[0] = z;
@@ -632,6 +672,7 @@ static void sample_hit(struct reyes_hider *h, struct sample *s, float z, const s
 	struct hit *nh = &h->hits[ni];
 	nh->z = z;
 	nh->matte = g->matte;
+	nh->csg = m->csg ? m->csg | (m->front ? CSG_ENTER : 0) : 0;
 	if (h->o.record) {
 		/* The vertices' ids instead of colour; add() checked they fit. */
 		struct hit_ref *r = &h->hit_ref[ni];
@@ -673,7 +714,7 @@ static void sample_hit(struct reyes_hider *h, struct sample *s, float z, const s
 	uint32_t prev = NIL, cur = s->head;
 	while (cur != NIL && h->hits[cur].z <= z) {
 		const struct hit *c = &h->hits[cur];
-		for (int k = 0; k < 3; k++)
+		for (int k = 0; k < 3 && !c->csg; k++)
 			T[k] *= 1.0f - c->o[k];
 		prev = cur;
 		cur = c->next;
@@ -685,10 +726,11 @@ static void sample_hit(struct reyes_hider *h, struct sample *s, float z, const s
 	else
 		h->hits[prev].next = ni;
 
-	/* Find where the sample now becomes opaque and drop what is behind. */
+	/* Find where the sample now becomes opaque and drop what is behind
+	 * (a solid's hits may yet be cut away: they hide nothing here). */
 	for (uint32_t i = ni; i != NIL; i = h->hits[i].next) {
 		struct hit *c = &h->hits[i];
-		for (int k = 0; k < 3; k++)
+		for (int k = 0; k < 3 && !c->csg; k++)
 			T[k] *= 1.0f - c->o[k];
 		if (opaque3(T, thr)) {
 			s->zopq = c->z;
@@ -788,11 +830,9 @@ static bool quad_init(struct quad *q, const float vx[4], const float vy[4], bool
 	double area = a1 + a2;
 	if (!(area != 0.0))
 		return false;
-	if (cull) {
-		bool front = area > 0.0;
-		if (front == flip)
-			return false;
-	}
+	q->front = (area > 0.0) != flip;
+	if (cull && !q->front)
+		return false;
 	/* NaN in the bound lets samples through to the edge tests, which reject them. */
 	q->x0 = min4(vx);
 	q->x1 = max4(vx);
@@ -880,7 +920,7 @@ static void id_overflow(struct reyes_hider *h, const struct reyes_hider_grid *g)
  * vertices' moves (with a margin far above rounding) rejects them before
  * the exact test.
  */
-static void add_defocused(struct reyes_hider *h, const struct mp_src *m, struct quad *q,
+static void add_defocused(struct reyes_hider *h, struct mp_src *m, struct quad *q,
 			  const float vx[4], const float vy[4], const float vz[4], uint32_t sx0,
 			  uint32_t sx1, uint32_t sy0, uint32_t sy1)
 {
@@ -910,12 +950,35 @@ static void add_defocused(struct reyes_hider *h, const struct mp_src *m, struct 
 				ty[k] = vy[k] + lv * dy[k];
 			}
 			float *wp = g->smooth ? w : NULL;
-			if (!quad_init(q, tx, ty, g->cull_backfacing, g->flip) ||
+			if (!quad_init(q, tx, ty, m->cull, g->flip) ||
 			    !quad_test(q, s->x, s->y, vz, wp, &z))
 				continue;
+			m->front = q->front;
 			sample_hit(h, s, z, m, wp);
 		}
 	}
+}
+
+/*
+ * A grid of a solid is about to be sampled: make room for its tree's
+ * scratch. False (the grid is then sampled as if in no solid) when its
+ * leaf is not a node of its tree.
+ */
+static bool csg_begin_grid(struct reyes_hider *h, const struct reyes_hider_grid *g)
+{
+	const struct reyes_csg *csg = g->csg;
+	if (!csg || g->csg_leaf > csg->nnodes || g->csg_leaf >= CSG_ENTER)
+		return false;
+	if (csg->nnodes > h->csg_cap) {
+		free(h->csg_count);
+		free(h->csg_seen);
+		h->csg_count = rl_xcalloc(csg->nnodes, sizeof(*h->csg_count));
+		h->csg_seen = rl_xcalloc(csg->nnodes, sizeof(*h->csg_seen));
+		h->csg_cap = csg->nnodes;
+	}
+	h->csg = csg;
+	h->csg_bucket = true;
+	return true;
 }
 
 void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
@@ -934,8 +997,12 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 	float lx = o->lens[0], ly = o->lens[1];
 	double rx0 = h->rx0, rx1 = h->rx1, ry0 = h->ry0, ry1 = h->ry1;
 	uint32_t gx1 = h->gx0 + h->sw, gy1 = h->gy0 + h->sh;
-	struct mp_src m = { .g = g, .n = (size_t)g->nu * g->nv };
+	struct mp_src m = { .g = g, .n = (size_t)g->nu * g->nv, .cull = g->cull_backfacing };
 	struct quad q;
+	if (g->csg_leaf && csg_begin_grid(h, g)) {
+		m.csg = g->csg_leaf;
+		m.cull = false;
+	}
 	/* Record mode: vertex k is shading sample id0 + k, so k < nid. */
 	bool record = o->record;
 	uint64_t nid = (uint64_t)UINT32_MAX - g->id0 + 1;
@@ -997,8 +1064,9 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 			}
 
 			if (!moves && !dof) {
-				if (!quad_init(&q, vx, vy, g->cull_backfacing, g->flip))
+				if (!quad_init(&q, vx, vy, m.cull, g->flip))
 					continue;
+				m.front = q.front;
 				for (uint32_t gy = sy0; gy <= sy1; gy++) {
 					size_t row = (size_t)(gy - h->gy0) * h->sw;
 					for (uint32_t gx = sx0; gx <= sx1; gx++) {
@@ -1067,9 +1135,10 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 					    s->y > max4(ty))
 						continue;
 					float *wp = g->smooth ? w : NULL;
-					if (!quad_init(&q, tx, ty, g->cull_backfacing, g->flip) ||
+					if (!quad_init(&q, tx, ty, m.cull, g->flip) ||
 					    !quad_test(&q, s->x, s->y, tz, wp, &z))
 						continue;
+					m.front = q.front;
 					sample_hit(h, s, z, &m, wp);
 				}
 			}
@@ -1144,10 +1213,107 @@ static float sample_depth(const struct reyes_hider *h, const struct sample *s)
 	return s->zopq;
 }
 
+/* ---- solids ---- */
+
+/* Seed each leaf the sample crosses with its count in front of the first crossing. */
+static uint32_t csg_seed(struct reyes_hider *h, const struct sample *s)
+{
+	uint32_t nt = 0;
+	for (uint32_t i = s->head; i != NIL; i = h->hits[i].next) {
+		uint32_t c = h->hits[i].csg;
+		uint32_t leaf = (c & ~CSG_ENTER) - 1;
+		if (!c || h->csg_seen[leaf])
+			continue;
+		if (nt == h->touched_cap) {
+			h->touched_cap = h->touched_cap ? 2 * h->touched_cap : 64;
+			h->csg_touched = rl_xrealloc(h->csg_touched,
+						     h->touched_cap * sizeof(*h->csg_touched));
+		}
+		h->csg_touched[nt++] = leaf;
+		h->csg_seen[leaf] = 1;
+		/* first crossed on the way out: the eye is inside */
+		h->csg_count[leaf] = c & CSG_ENTER ? 0 : 1;
+	}
+	return nt;
+}
+
+/* Does crossing @c change the value of its leaf's tree? */
+static bool csg_crosses(struct reyes_hider *h, uint32_t c)
+{
+	uint32_t leaf = (c & ~CSG_ENTER) - 1, root = h->csg->nodes[leaf].root;
+	bool before = reyes_csg_inside(h->csg, root, h->csg_count);
+	h->csg_count[leaf] += c & CSG_ENTER ? 1 : -1;
+	return reyes_csg_inside(h->csg, root, h->csg_count) != before;
+}
+
+/* Unlink the sample's solid hits that do not bound their solid; its opaque point again. */
+static void csg_resolve(struct reyes_hider *h, struct sample *s)
+{
+	uint32_t nt = csg_seed(h, s);
+	if (!nt)
+		return;
+	uint32_t prev = NIL, next;
+	for (uint32_t i = s->head; i != NIL; i = next) {
+		struct hit *c = &h->hits[i];
+		next = c->next;
+		if (c->csg && !csg_crosses(h, c->csg)) {
+			if (prev == NIL)
+				s->head = next;
+			else
+				h->hits[prev].next = next;
+			c->next = h->freelist;
+			h->freelist = i;
+			continue;
+		}
+		prev = i;
+	}
+	for (uint32_t k = 0; k < nt; k++)
+		h->csg_seen[h->csg_touched[k]] = 0;
+
+	/* The solid's hits that are opaque by themselves join the midpoint's
+	   depths; the opaque point is at or in front of the other hits' (their
+	   hits are all still there). */
+	float T[3] = { 1.0f, 1.0f, 1.0f }, thr = h->o.opacity_threshold;
+	for (uint32_t i = s->head; h->o.depthfilter == REYES_DEPTH_MIDPOINT && i != NIL;
+	     i = h->hits[i].next) {
+		const struct hit *c = &h->hits[i];
+		if (!c->csg || !(c->o[0] >= thr && c->o[1] >= thr && c->o[2] >= thr))
+			continue;
+		if (c->z < s->zo[0]) {
+			s->zo[1] = s->zo[0];
+			s->zo[0] = c->z;
+		} else if (c->z < s->zo[1]) {
+			s->zo[1] = c->z;
+		}
+	}
+	s->zopq = INFINITY;
+	for (uint32_t i = s->head; i != NIL; i = h->hits[i].next) {
+		struct hit *c = &h->hits[i];
+		for (int k = 0; k < 3; k++)
+			T[k] *= 1.0f - c->o[k];
+		if (opaque3(T, thr)) {
+			s->zopq = c->z;
+			free_chain(h, c->next);
+			c->next = NIL;
+			break;
+		}
+	}
+}
+
+/* Resolve the solids of every sample of the region (a bucket with none has no work). */
+static void csg_resolve_all(struct reyes_hider *h, size_t n)
+{
+	if (!h->csg_bucket)
+		return;
+	for (size_t si = 0; si < n; si++)
+		csg_resolve(h, &h->samp[si]);
+}
+
 /* Composite every sample of the region front to back. */
 static void composite(struct reyes_hider *h, size_t n)
 {
 	uint32_t naov = h->o.naov;
+	csg_resolve_all(h, n);
 	for (size_t si = 0; si < n; si++) {
 		const struct sample *s = &h->samp[si];
 		float *col = h->scol + si * 4;
@@ -1404,6 +1570,7 @@ uint64_t reyes_hider_end(struct reyes_hider *h, float *rgba, float *zout, float 
  */
 static void composite_record(struct reyes_hider *h, size_t n)
 {
+	csg_resolve_all(h, n);
 	/* At most three vertices per hit that is still in a list. */
 	size_t need = (size_t)h->nhits * 3;
 	if (need > h->rcap) {

@@ -62,6 +62,13 @@ struct reyes_hider_grid {
 	   the grid; when false every sample does. */
 	bool dissolve;
 	float lod_lo, lod_hi;
+	/* Solid modeling: 1 + the grid's leaf (its "primitive" solid) in *csg,
+	   or 0 when it is in no solid. Micropolygons of a solid are never
+	   culled; a sample keeps one of their hits only where the ray crosses
+	   the composite solid's boundary (front-facing: the ray enters the
+	   leaf; see hider.c). */
+	const struct reyes_csg *csg;
+	uint32_t csg_leaf;
 	uint32_t id0;                     /* record mode: vertex k is shading sample id0 + k;
 					     micropolygons using an id past 2^32 - 1 are
 					     dropped (reported once) */

@@ -1342,6 +1342,8 @@ static bool shade_job(struct tctx *t, struct job *job)
 	sh->hg.smooth = a->smooth;
 	sh->hg.cull_backfacing = a->sides == 1;
 	sh->hg.flip = a->flip_normals;
+	sh->hg.csg = prim->csg_leaf ? &r->scene->csg : NULL;
+	sh->hg.csg_leaf = prim->csg_leaf;
 	sh->hg.matte = a->matte;
 	sh->hg.dissolve = a->dissolve;
 	sh->hg.lod_lo = a->lod_lo;

@@ -2292,6 +2292,7 @@ static void build_scene(struct ri *ri, struct reyes_scene *sc)
 	sc->nlights = (uint32_t)ri->lights.len;
 	sc->prims = ri->prims.data;
 	sc->nprims = (uint32_t)ri->prims.len;
+	reyes_ri_csg_scene(ri, a, &sc->csg);
 	uint32_t ns = (uint32_t)ri->spaces.len;
 	const char **names = rl_arena_alloc(a, sizeof(*names) * (ns ? ns : 1));
 	float (*m)[16] = rl_arena_alloc(a, sizeof(*m) * (ns ? ns : 1));
@@ -2307,6 +2308,8 @@ static void build_scene(struct ri *ri, struct reyes_scene *sc)
 static void world_end(struct ri *ri, bool render)
 {
 	forward_reader_diag(ri);
+	reyes_ri_csg_world_end(ri, ri->files.len ? ri->files.data[ri->files.len - 1].last
+						 : (struct rib_loc){0});
 	if (render && !ri->stop && ri->frame_errors == 0 && ri->opts->frame) {
 		struct reyes_scene sc;
 		build_scene(ri, &sc);
@@ -2327,6 +2330,7 @@ static void world_end(struct ri *ri, bool render)
 	strmap_free(&ri->space_index);
 	ri->lights.len = 0;
 	ri->prims.len = 0;
+	ri->csg_nodes.len = 0;
 	ri->spaces.len = 0;
 	rl_arena_destroy(ri->world);
 	ri->world = NULL;
@@ -2412,6 +2416,8 @@ static const struct handler handlers[] = {
 	{"ObjectBegin", reyes_ri_req_object_begin, 0},
 	{"ObjectEnd", reyes_ri_req_object_end, 0},
 	{"ObjectInstance", reyes_ri_req_object_instance, 0},
+	{"SolidBegin", reyes_ri_req_solid_begin, 0},
+	{"SolidEnd", reyes_ri_req_solid_end, 0},
 	{"ReadArchive", req_read_archive, 0},
 	{"MakeTexture", req_make_texture, 0},
 	{"MakeShadow", req_make_shadow, 0},
@@ -2602,6 +2608,8 @@ bool reyes_ri_read(const char *path, const struct reyes_ri_opts *opts, int *nerr
 	rl_vec_free(ri->pre_lights);
 	rl_vec_free(ri->lights);
 	rl_vec_free(ri->prims);
+	rl_vec_free(ri->csg_nodes);
+	rl_vec_free(ri->csg_open);
 	rl_vec_free(ri->spaces);
 	strmap_free(&ri->decls);
 	strmap_free(&ri->shader_cache);

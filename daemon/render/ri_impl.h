@@ -228,6 +228,12 @@ struct space {
 	float m[16];              /* that space to world (before WorldBegin: to camera) */
 };
 
+/* An open SolidBegin (ri_csg.c). */
+struct ri_solid {
+	uint32_t node;            /* its node, or the enclosing one's when it opened none */
+	struct rib_loc loc;
+};
+
 /* A file being read: the top-level file or an archive. */
 struct file {
 	const char *path;
@@ -313,6 +319,10 @@ struct ri {
 	RL_VEC(struct reyes_prim) prims;
 	RL_VEC(struct space) spaces;
 	struct strmap space_index;
+
+	/* SolidBegin/SolidEnd (ri_csg.c): the world's CSG nodes, the open solids */
+	RL_VEC(struct reyes_csg_node) csg_nodes;
+	RL_VEC(struct ri_solid) csg_open;
 };
 
 /* ---- ri.c: diagnostics ------------------------------------------------------------- */
@@ -540,5 +550,26 @@ void reyes_ri_req_subdivision_mesh(struct ri *ri, const struct rib_request *r);
 
 /** Do two motion samples of subdivision meshes agree in faces and tags? */
 bool reyes_ri_subdiv_same(const struct reyes_prim *a, const struct reyes_prim *b);
+
+/* ---- ri_csg.c: solid modeling -------------------------------------------------------- */
+
+/** SolidBegin OPERATION: opens a solid inside the innermost open one (or a new tree). */
+void reyes_ri_req_solid_begin(struct ri *ri, const struct rib_request *r);
+
+/** SolidEnd: closes the innermost open solid. */
+void reyes_ri_req_solid_end(struct ri *ri, const struct rib_request *r);
+
+/**
+ * The csg_leaf of a primitive added now (1 + its leaf node; 0: in no
+ * solid). A primitive directly inside an operation gets a leaf of its own
+ * (reported).
+ */
+uint32_t reyes_ri_csg_leaf(struct ri *ri);
+
+/** WorldEnd at @at: solids still open are reported and closed. */
+void reyes_ri_csg_world_end(struct ri *ri, struct rib_loc at);
+
+/** The world's CSG nodes, copied into @a, for its scene. */
+void reyes_ri_csg_scene(struct ri *ri, struct rl_arena *a, struct reyes_csg *out);
 
 #endif

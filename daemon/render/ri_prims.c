@@ -594,6 +594,7 @@ static void add_prim(struct ri *ri, struct reyes_prim *p, const struct xform *x)
 	if (q.attrs->dissolve && !(q.attrs->lod_hi > q.attrs->lod_lo))
 		return;         /* a representation its DetailRange leaves out */
 	q.id = (uint32_t)ri->prims.len;
+	q.csg_leaf = reyes_ri_csg_leaf(ri);
 	rl_vec_push(ri->prims, q);
 }
 
@@ -1259,6 +1260,7 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 		if (q.attrs->dissolve && !(q.attrs->lod_hi > q.attrs->lod_lo))
 			continue;
 		q.id = (uint32_t)ri->prims.len;
+		q.csg_leaf = reyes_ri_csg_leaf(ri);
 		rl_vec_push(ri->prims, q);
 	}
 }

@@ -135,6 +135,8 @@ static const struct reqdef reqdefs[] = {
 	{"MotionEnd", "", 0},
 	{"ObjectBegin", "handle:h", 0},
 	{"ObjectEnd", "", 0},
+	{"SolidBegin", "operation:s", 0},
+	{"SolidEnd", "", 0},
 	{"ObjectInstance", "handle:h", 0},
 	{"ReadArchive", "filename:s", TAKES_PARAMS},
 	{"MakeTexture", "picturename:s texturename:s swrap:s twrap:s filter:s swidth:n twidth:n",
@@ -173,7 +175,7 @@ static const char *const unsupported[] = {
 	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Geometry", "IfBegin",
 	"IfEnd", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
 	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
-	"Shader", "SolidBegin", "SolidEnd", "System", "TrimCurve",
+	"Shader", "System", "TrimCurve",
 };
 
 /* ---- diagnostics ------------------------------------------------------------ */

@@ -8,6 +8,7 @@
 #ifndef REYES_SCENE_H
 #define REYES_SCENE_H
 
+#include "csg.h"
 #include "exec.h"
 #include "rib.h"
 
@@ -209,6 +210,10 @@ struct reyes_prim {
 	uint32_t npoints;                     /* vertex positions ("P" count) */
 	const struct reyes_primvar *vars;     /* "P" is always present (vertex point) */
 	uint32_t nvars;
+
+	/* Solid modeling (csg.h): 1 + the node of the "primitive" solid the
+	   primitive bounds in the scene's csg; 0: it is in no solid. */
+	uint32_t csg_leaf;
 };
 
 /** A finished scene: what one frame renders. */
@@ -224,6 +229,7 @@ struct reyes_scene {
 	const float (*space_to_world)[16];
 	uint32_t nspaces;
 	uint32_t world;                 /* the world's place in the scene, from 0, rendered or not */
+	struct reyes_csg csg;           /* SolidBegin/SolidEnd trees (nnodes 0: none) */
 };
 
 /** The variable named @name of @p, or NULL. */

@@ -46,9 +46,31 @@ static void exercise_piece(const struct reyes_patch *pa)
 	reyes_grid_finish(&g);
 }
 
+/* Solids: every primitive's leaf is a "primitive" node, and each tree evaluates. */
+static void exercise_csg(const struct reyes_scene *scene)
+{
+	const struct reyes_csg *csg = &scene->csg;
+	int32_t *count = calloc(csg->nnodes ? csg->nnodes : 1, sizeof(*count));
+	if (!count)
+		return;
+	for (uint32_t p = 0; p < scene->nprims; p++) {
+		uint32_t leaf = scene->prims[p].csg_leaf;
+		if (!leaf)
+			continue;
+		if (leaf > csg->nnodes || csg->nodes[leaf - 1].op != REYES_CSG_PRIMITIVE)
+			abort();
+		count[leaf - 1] = 1;
+		(void)reyes_csg_inside(csg, csg->nodes[leaf - 1].root, count);
+		(void)reyes_csg_subtracted(csg, leaf - 1);
+		(void)reyes_csg_union_only(csg, leaf - 1);
+	}
+	free(count);
+}
+
 static bool frame(void *user, const struct reyes_scene *scene)
 {
 	(void)user;
+	exercise_csg(scene);
 	struct reyes_patch *pieces = NULL;
 	size_t cap = 0;
 	size_t budget = MAX_PIECES;
