@@ -28,6 +28,7 @@
  * points or faces change in place must be given to reyes_prim_pieces again.
  */
 #include "geom.h"
+#include "nurbs.h"
 
 #include "arena.h"
 #include "log.h"
@@ -1478,6 +1479,8 @@ bool reyes_prim_pieces(const struct reyes_prim *p, struct reyes_patch **out, siz
 {
 	if (!p || !out || !n || !cap)
 		return false;
+	if (p->kind == REYES_NUPATCH)
+		return reyes_nurbs_pieces(p, out, n, cap);
 	size_t count = 0;
 	struct poly_mesh *m = NULL;
 	uint32_t ncu = 0, ncv = 0;
@@ -1561,6 +1564,10 @@ void reyes_patch_split(const struct reyes_patch *pa, bool along_u, struct reyes_
 
 void reyes_patch_bound(const struct reyes_patch *pa, int t, float lo[3], float hi[3])
 {
+	if (pa && pa->prim && pa->prim->kind == REYES_NUPATCH) {
+		reyes_nurbs_bound(pa, t, lo, hi);
+		return;
+	}
 	double blo[3] = { INFINITY, INFINITY, INFINITY }, bhi[3] = { -INFINITY, -INFINITY, -INFINITY };
 	struct piece pc;
 	if (!setup_piece(pa, &pc)) {
@@ -1759,6 +1766,8 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 {
 	if (!g)
 		return false;
+	if (pa && pa->prim && pa->prim->kind == REYES_NUPATCH)
+		return reyes_nurbs_dice(pa, nu, nv, g);
 	memset(g, 0, sizeof(*g));
 	struct piece pc;
 	if (!setup_piece(pa, &pc))

@@ -942,6 +942,34 @@ void reyes_ri_req_patch_mesh(struct ri *ri, const struct rib_request *r)
 		emit_prim(ri, r, p);
 }
 
+/* ---- for primitives parsed in files of their own (ri_nurbs.c) ---- */
+
+bool reyes_ri_geometry_ok(struct ri *ri, const struct rib_request *r)
+{
+	return geometry_ok(ri, r);
+}
+
+bool reyes_ri_point_count(struct ri *ri, const struct rib_request *r, uint32_t *np)
+{
+	return point_count(ri, r, false, np);
+}
+
+struct reyes_prim *reyes_ri_new_prim(struct ri *ri, enum reyes_prim_kind kind)
+{
+	return new_prim(ri, kind);
+}
+
+bool reyes_ri_prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t sizes[5],
+			struct reyes_prim *p)
+{
+	return prim_vars(ri, r, sizes, true, p);
+}
+
+void reyes_ri_emit_prim(struct ri *ri, const struct rib_request *r, struct reyes_prim *p)
+{
+	emit_prim(ri, r, p);
+}
+
 /* ---- motion ---------------------------------------------------------------------------- */
 
 void reyes_ri_req_motion_begin(struct ri *ri, const struct rib_request *r)
@@ -1047,6 +1075,8 @@ static const char *topology_mismatch(const struct reyes_prim *a, const struct re
 		    a->uperiodic != b->uperiodic || a->vperiodic != b->vperiodic ||
 		    a->heightfield != b->heightfield)) {
 		return "patch mesh";
+	} else if (a->kind == REYES_NUPATCH && !reyes_ri_nurbs_same(a, b)) {
+		return "NuPatch orders, knots, ranges or weights";
 	}
 	if (a->npoints != b->npoints)
 		return "number of points";

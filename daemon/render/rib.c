@@ -156,6 +156,9 @@ static const struct reqdef reqdefs[] = {
 	{"PointsGeneralPolygons", "nloops:I nvertices:I vertices:I", TAKES_PARAMS | PRIMITIVE},
 	{"Patch", "type:s", TAKES_PARAMS | PRIMITIVE},
 	{"PatchMesh", "type:s nu:i uwrap:s nv:i vwrap:s", TAKES_PARAMS | PRIMITIVE},
+	{"NuPatch", "nu:i uorder:i uknot:a umin:n umax:n nv:i vorder:i vknot:a vmin:n vmax:n",
+	 TAKES_PARAMS | PRIMITIVE},
+	{"TrimCurve", "ncurves:I order:I knot:a min:a max:a n:I u:a v:a w:a", 0},
 };
 
 /*
@@ -167,9 +170,9 @@ static const char *const unsupported[] = {
 	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Blobby",
 	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Curves", "Deformation",
 	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Geometry", "IfBegin",
-	"IfEnd", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
+	"IfEnd", "MakeBrickMap", "MakeBump", "Perspective",
 	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
-	"Shader", "SolidBegin", "SolidEnd", "SubdivisionMesh", "System", "TrimCurve",
+	"Shader", "SolidBegin", "SolidEnd", "SubdivisionMesh", "System",
 };
 
 /* ---- diagnostics ------------------------------------------------------------ */

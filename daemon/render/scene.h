@@ -134,6 +134,8 @@ struct reyes_attrs {
 	float object_to_world[2][16];         /* at shutter open and close */
 };
 
+struct reyes_nurbs;
+
 enum reyes_class { REYES_CONSTANT, REYES_UNIFORM, REYES_VARYING, REYES_VERTEX, REYES_FACEVARYING };
 
 /** A primitive variable: P, N, Cs, Os, s, t, st, or user data for shader parameters. */
@@ -157,6 +159,7 @@ enum reyes_prim_kind {
 	REYES_TORUS,        /* q: majorradius minorradius phimin phimax thetamax */
 	REYES_POLYGONS,     /* Polygon, GeneralPolygon, PointsPolygons, PointsGeneralPolygons */
 	REYES_PATCHES,      /* Patch and PatchMesh, bilinear or bicubic */
+	REYES_NUPATCH,      /* NuPatch (NURBS, any order, rational, trimmed): see nurbs.h */
 };
 
 struct reyes_prim {
@@ -182,6 +185,9 @@ struct reyes_prim {
 	/* A height field ("Pz"): the surface's x and y are its u and v over the
 	   whole mesh, z is "P"'s z through the basis (P's x and y are unused). */
 	bool heightfield;
+
+	/* REYES_NUPATCH: orders, knots, weights, ranges and trim region (nurbs.h). */
+	const struct reyes_nurbs *nurbs;
 
 	uint32_t npoints;                     /* vertex positions ("P" count) */
 	const struct reyes_primvar *vars;     /* "P" is always present (vertex point) */
