@@ -246,16 +246,10 @@ static void *talloc(void *(*alloc)(void *, size_t), void *ctx, size_t n)
 	return alloc(ctx, n ? n : 1);
 }
 
-static const char *trim_bands(struct reyes_trim *t, void *(*alloc)(void *, size_t), void *ctx)
+/* The bands of each edge for @nb bands; the number of (band, edge) entries. */
+static uint64_t band_ranges(const struct reyes_trim *t, uint32_t nb, uint32_t (*range)[2])
 {
-	uint32_t nb = t->nedges / 4;
-	nb = nb < 1 ? 1 : nb > 1024 ? 1024 : nb;
-	uint32_t *off = talloc(alloc, ctx, sizeof(uint32_t) * (nb + 1));
-	memset(off, 0, sizeof(uint32_t) * (nb + 1));
 	double h = (double)t->hi[1] - t->lo[1];
-	uint32_t (*range)[2] = malloc(sizeof(*range) * (t->nedges ? t->nedges : 1));
-	if (!range)
-		return "out of memory";
 	uint64_t total = 0;
 	for (uint32_t k = 0; k < t->nedges; k++) {
 		const float *e = &t->edges[4 * (size_t)k];
@@ -267,10 +261,24 @@ static const char *trim_bands(struct reyes_trim *t, void *(*alloc)(void *, size_
 		range[k][0] = b0, range[k][1] = b1;
 		total += b1 - b0 + 1;
 	}
-	if (total > UINT32_MAX / 2) {
-		free(range);
-		return "too many trim curve edges";
+	return total;
+}
+
+static const char *trim_bands(struct reyes_trim *t, void *(*alloc)(void *, size_t), void *ctx)
+{
+	uint32_t nb = t->nedges / 4;
+	nb = nb < 1 ? 1 : nb > 1024 ? 1024 : nb;
+	uint32_t (*range)[2] = malloc(sizeof(*range) * (t->nedges ? t->nedges : 1));
+	if (!range)
+		return "out of memory";
+	/* Edges that each span many bands (a zigzag) would make the lists huge: fewer bands. */
+	uint64_t total = band_ranges(t, nb, range);
+	while (nb > 1 && total > 4 * (uint64_t)t->nedges + 4 * (uint64_t)nb) {
+		nb /= 2;
+		total = band_ranges(t, nb, range);
 	}
+	uint32_t *off = talloc(alloc, ctx, sizeof(uint32_t) * (nb + 1));
+	memset(off, 0, sizeof(uint32_t) * (nb + 1));
 	uint32_t *list = talloc(alloc, ctx, sizeof(uint32_t) * total);
 	for (uint32_t k = 0; k < t->nedges; k++)
 		for (uint32_t b = range[k][0]; b <= range[k][1]; b++)
@@ -306,7 +314,8 @@ const char *reyes_trim_build(const struct reyes_trim_curves *c, void *(*alloc)(v
 			return "a trim curve has fewer points than its order";
 		nk += (uint64_t)c->n[i] + c->order[i];
 		np += c->n[i];
-		edges += (uint64_t)(c->n[i] - c->order[i] + 1) * trim_steps(c->order[i]) + 1;
+		/* each span adds at most steps + 1 edges (one joins it to the span before) */
+		edges += (uint64_t)(c->n[i] - c->order[i] + 1) * (trim_steps(c->order[i]) + 1) + 1;
 	}
 	if (nk != c->nknots)
 		return "the knot array's length is not the sum of n + order";
