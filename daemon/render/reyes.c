@@ -1993,23 +1993,27 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 
 /*
  * A trimmed NuPatch's micropolygons whose centre (u, v) the trim curve
- * keeps: 1 per kept micropolygon, or NULL (all kept, or out of memory).
+ * keeps, 1 per kept micropolygon, into *keep (NULL when not trimmed).
+ * False when memory runs out.
  */
-static uint8_t *trim_keep(const struct reyes_prim *prim, const struct reyes_grid *g, uint32_t nu,
-			  uint32_t nv)
+static bool trim_keep(const struct reyes_prim *prim, const struct reyes_grid *g, uint8_t **keep)
 {
 	const struct reyes_trim *trim = prim->nurbs ? prim->nurbs->trim : NULL;
-	if (!trim || !g->u || !g->v || g->nu != nu || g->nv != nv || nu < 2 || nv < 2)
-		return NULL;
-	uint8_t *keep = malloc((size_t)(nu - 1) * (nv - 1));
-	for (uint32_t j = 0; keep && j + 1 < nv; j++)
+	uint32_t nu = g->nu, nv = g->nv;
+	*keep = NULL;
+	if (!trim || nu < 2 || nv < 2)
+		return true;
+	*keep = malloc((size_t)(nu - 1) * (nv - 1));
+	if (!*keep)
+		return false;
+	for (uint32_t j = 0; j + 1 < nv; j++)
 		for (uint32_t i = 0; i + 1 < nu; i++) {
 			uint32_t k = j * nu + i;
 			float u = 0.25f * (g->u[k] + g->u[k + 1] + g->u[k + nu] + g->u[k + nu + 1]);
 			float v = 0.25f * (g->v[k] + g->v[k + 1] + g->v[k + nu] + g->v[k + nu + 1]);
-			keep[j * (nu - 1) + i] = reyes_trim_keeps(trim, u, v);
+			(*keep)[j * (nu - 1) + i] = reyes_trim_keeps(trim, u, v);
 		}
-	return keep;
+	return true;
 }
 
 bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *opts)
@@ -2088,8 +2092,13 @@ bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *o
 				ok = false;
 				break;
 			}
-			uint8_t *keep = trim_keep(prim, &g, c.nu, c.nv);
-			ok = opts->grid(opts->user, prim, c.P0, c.nu, c.nv, keep);
+			uint8_t *keep;
+			if (!trim_keep(prim, &g, &keep)) {
+				fprintf(r.diag, "relight: error: out of memory dicing primitive %u\n",
+					prim->id);
+				ok = false;
+			}
+			ok = ok && opts->grid(opts->user, prim, c.P0, c.nu, c.nv, keep);
 			free(keep);
 			free(c.P0);
 			reyes_grid_finish(&g);
