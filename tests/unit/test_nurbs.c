@@ -7,6 +7,7 @@
  *   - a rational NuPatch sphere (the 9-point circle swept along the 5-point
  *     half circle, order 3, weights sqrt(2)/2) against Sphere: coverage
  *     within 0.1 %, per-pixel alpha within 0.1, mean colour within 0.1 %;
+ *     and with umax 0.5 against Sphere's thetamax 180 (a knot range clipped);
  *   - a square bilinear NuPatch trimmed by a rational circle: its area
  *     matches the circle's within 0.5 %; the circle reversed (clockwise)
  *     keeps the square minus the disk, and so does a counter-clockwise
@@ -57,14 +58,15 @@ static const double circle[9][3] = {
 };
 static const char *circle_knots = "[0 0 0 .25 .25 .5 .5 .75 .75 1 1 1]";
 
-/* A NuPatch sphere of radius 1: the circle swept along a half circle (r, z, w). */
-static void nurbs_sphere(char *buf, size_t cap)
+/* A NuPatch sphere of radius 1: the circle swept along a half circle (r, z, w), u in [0, umax]. */
+static void nurbs_sphere(char *buf, size_t cap, double umax)
 {
 	static const double half[5][3] = {
 		{ 0, -1, 1 }, { 1, -1, 0.70710678118654752 }, { 1, 0, 1 },
 		{ 1, 1, 0.70710678118654752 }, { 0, 1, 1 },
 	};
-	cat(buf, cap, "NuPatch 9 3 %s 0 1 5 3 [0 0 0 .5 .5 1 1 1] 0 1 \"Pw\" [", circle_knots);
+	cat(buf, cap, "NuPatch 9 3 %s 0 %g 5 3 [0 0 0 .5 .5 1 1 1] 0 1 \"Pw\" [", circle_knots,
+	    umax);
 	for (int l = 0; l < 5; l++)
 		for (int k = 0; k < 9; k++) {
 			double w = circle[k][2] * half[l][2];
@@ -135,19 +137,19 @@ static const char *sphere_head =
  * within 0.1 %, each pixel's alpha within 0.1, the mean colour difference
  * within 0.1 % (of 1), since normals and u, v derivatives agree too.
  */
-static void test_sphere(void)
+static void sphere_case(double umax, double thetamax)
 {
 	struct reyes_image a = { 0 }, b = { 0 };
 	snprintf(rib, sizeof(rib), "%s", sphere_head);
-	nurbs_sphere(rib, sizeof(rib));
+	nurbs_sphere(rib, sizeof(rib), umax);
 	cat(rib, sizeof(rib), "WorldEnd\n");
 	CHECK(render(rib, "out.exr", &a));
-	snprintf(rib, sizeof(rib), "%sSphere 1 -1 1 360\nWorldEnd\n", sphere_head);
+	snprintf(rib, sizeof(rib), "%sSphere 1 -1 1 %g\nWorldEnd\n", sphere_head, thetamax);
 	CHECK(render(rib, "out.exr", &b));
 	if (!a.data || !b.data)
 		goto done;
 	double sa = alpha_sum(&a), sb = alpha_sum(&b), mean;
-	printf("sphere: NuPatch coverage %.4f, Sphere %.4f (%.4f %%)\n", sa, sb,
+	printf("sphere (umax %g): NuPatch coverage %.4f, Sphere %.4f (%.4f %%)\n", umax, sa, sb,
 	       100.0 * (sa - sb) / sb);
 	CHECK(sb > 500.0);
 	CHECK_NEAR(sa / sb, 1.0, 1e-3);
@@ -160,6 +162,13 @@ static void test_sphere(void)
 done:
 	reyes_image_finish(&a);
 	reyes_image_finish(&b);
+}
+
+/* The whole sphere, and u clipped to [0, 0.5] (knot 0.5 is the circle's half): Sphere's 180. */
+static void test_sphere(void)
+{
+	sphere_case(1.0, 360.0);
+	sphere_case(0.5, 180.0);
 }
 
 static const char *square_head =
