@@ -155,7 +155,7 @@ static bool reserve(void **data, uint64_t *cap, uint64_t need, size_t elem)
 }
 
 static bool on_grid(void *user, const struct reyes_prim *prim, const float *P, uint32_t nu,
-		    uint32_t nv)
+		    uint32_t nv, const uint8_t *keep)
 {
 	struct gather *gt = user;
 	struct bake_shadow_geometry *o = gt->out;
@@ -197,7 +197,8 @@ static bool on_grid(void *user, const struct reyes_prim *prim, const float *P, u
 		for (uint32_t i = 0; i + 1 < nu; i++) {
 			uint32_t a = j * nu + i;
 			uint32_t v[4] = { a, a + 1, a + nu + 1, a + nu };
-			bool good = true;
+			/* a trimmed NuPatch: micropolygons whose centre is cut away cast nothing */
+			bool good = !keep || keep[j * (nu - 1) + i];
 			for (int c = 0; c < 4; c++)
 				good = good && !isnan(dst[3 * v[c]]);
 			if (!good)

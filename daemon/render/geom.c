@@ -29,6 +29,7 @@
  */
 #include "geom.h"
 #include "geom_subdiv.h"
+#include "nurbs.h"
 
 #include "arena.h"
 #include "log.h"
@@ -1479,6 +1480,8 @@ bool reyes_prim_pieces(const struct reyes_prim *p, struct reyes_patch **out, siz
 {
 	if (!p || !out || !n || !cap)
 		return false;
+	if (p->kind == REYES_NUPATCH)
+		return reyes_nurbs_pieces(p, out, n, cap);
 	size_t count = 0;
 	struct poly_mesh *m = NULL;
 	uint32_t ncu = 0, ncv = 0;
@@ -1566,6 +1569,10 @@ void reyes_patch_bound(const struct reyes_patch *pa, int t, float lo[3], float h
 {
 	if (pa && pa->prim && pa->prim->kind == REYES_SUBDIV) {
 		reyes_subdiv_bound(pa, t, lo, hi);
+		return;
+	}
+	if (pa && pa->prim && pa->prim->kind == REYES_NUPATCH) {
+		reyes_nurbs_bound(pa, t, lo, hi);
 		return;
 	}
 	double blo[3] = { INFINITY, INFINITY, INFINITY }, bhi[3] = { -INFINITY, -INFINITY, -INFINITY };
@@ -1768,6 +1775,8 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 		return false;
 	if (pa && pa->prim && pa->prim->kind == REYES_SUBDIV)
 		return reyes_subdiv_dice(pa, nu, nv, g);
+	if (pa && pa->prim && pa->prim->kind == REYES_NUPATCH)
+		return reyes_nurbs_dice(pa, nu, nv, g);
 	memset(g, 0, sizeof(*g));
 	struct piece pc;
 	if (!setup_piece(pa, &pc))

@@ -108,6 +108,7 @@
  * with no solid hit skips the pass).
  */
 #include "hider.h"
+#include "nurbs.h"
 
 #include "csg.h"
 
@@ -810,6 +811,17 @@ static float max4(const float v[4])
 	return a > b ? a : b;
 }
 
+/* sample_hit, unless the hit's (u, v) is cut away by the grid's trim curve. */
+static void trim_hit(struct reyes_hider *h, struct sample *s, float z, const struct mp_src *m,
+		     const float *w)
+{
+	const struct reyes_hider_grid *g = m->g;
+	if (g->trim && !reyes_trim_keeps(g->trim, plane_value(g->trim_uv, m, w),
+					 plane_value(g->trim_uv + m->n, m, w)))
+		return;
+	sample_hit(h, s, z, m, g->smooth ? w : NULL);
+}
+
 /*
  * Build the quad's edges and triangles from raster vertices v0 = (i, j),
  * v1 = (i+1, j), v2 = (i+1, j+1), v3 = (i, j+1). False when it is culled or
@@ -949,12 +961,12 @@ static void add_defocused(struct reyes_hider *h, struct mp_src *m, struct quad *
 				tx[k] = vx[k] + lu * dx[k];
 				ty[k] = vy[k] + lv * dy[k];
 			}
-			float *wp = g->smooth ? w : NULL;
+			float *wp = g->smooth || g->trim ? w : NULL;
 			if (!quad_init(q, tx, ty, m->cull, g->flip) ||
 			    !quad_test(q, s->x, s->y, vz, wp, &z))
 				continue;
 			m->front = q->front;
-			sample_hit(h, s, z, m, wp);
+			trim_hit(h, s, z, m, wp);
 		}
 	}
 }
@@ -1072,10 +1084,10 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 					for (uint32_t gx = sx0; gx <= sx1; gx++) {
 						struct sample *s = h->samp + row + (gx - h->gx0);
 						float w[4], z;
-						float *wp = g->smooth ? w : NULL;
+						float *wp = g->smooth || g->trim ? w : NULL;
 						if (!quad_test(&q, s->x, s->y, vz, wp, &z))
 							continue;
-						sample_hit(h, s, z, &m, wp);
+						trim_hit(h, s, z, &m, wp);
 					}
 				}
 				continue;
@@ -1134,12 +1146,12 @@ void reyes_hider_add(struct reyes_hider *h, const struct reyes_hider_grid *g)
 					if (s->x < min4(tx) || s->x > max4(tx) || s->y < min4(ty) ||
 					    s->y > max4(ty))
 						continue;
-					float *wp = g->smooth ? w : NULL;
+					float *wp = g->smooth || g->trim ? w : NULL;
 					if (!quad_init(&q, tx, ty, m.cull, g->flip) ||
 					    !quad_test(&q, s->x, s->y, tz, wp, &z))
 						continue;
 					m.front = q.front;
-					sample_hit(h, s, z, &m, wp);
+					trim_hit(h, s, z, &m, wp);
 				}
 			}
 		}

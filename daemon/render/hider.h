@@ -16,6 +16,8 @@
 
 #include "scene.h"
 
+struct reyes_trim;
+
 struct reyes_hider_opts {
 	uint32_t xres, yres;              /* image size in pixels */
 	uint32_t xsamples, ysamples;      /* per pixel, >= 1 */
@@ -69,6 +71,11 @@ struct reyes_hider_grid {
 	   leaf; see hider.c). */
 	const struct reyes_csg *csg;
 	uint32_t csg_leaf;
+	/* A trimmed NuPatch (TrimCurve): each vertex's surface (u, v), 2 planes,
+	   and the trim region; a sample whose (u, v), interpolated in the
+	   micropolygon's triangle, is cut away misses. NULL for everything else. */
+	const float *trim_uv;
+	const struct reyes_trim *trim;
 	uint32_t id0;                     /* record mode: vertex k is shading sample id0 + k;
 					     micropolygons using an id past 2^32 - 1 are
 					     dropped (reported once) */

@@ -20,6 +20,7 @@
 #include "reyes.h"
 #include "imager.h"
 #include "geom.h"
+#include "nurbs.h"
 #include "hider.h"
 #include "texture.h"
 #include "lighthost.h"
@@ -1251,7 +1252,8 @@ static bool shade_job(struct tctx *t, struct job *job)
 	}
 
 	/* the hider's grid: x y z at both times, Ci, Oi, aovs */
-	size_t planes = 6 + 6 + r->naov_planes;
+	const struct reyes_trim *trim = prim->nurbs ? prim->nurbs->trim : NULL;
+	size_t planes = 6 + 6 + r->naov_planes + (trim ? 2 : 0);
 	struct shaded *sh = calloc(1, sizeof(*sh));
 	float *mem = sh ? malloc(sizeof(float) * n * planes + sizeof(float *) * (r->naov_planes + 1))
 			: NULL;
@@ -1348,6 +1350,14 @@ static bool shade_job(struct tctx *t, struct job *job)
 	sh->hg.dissolve = a->dissolve;
 	sh->hg.lod_lo = a->lod_lo;
 	sh->hg.lod_hi = a->lod_hi;
+	if (trim) {
+		/* the hider tests each sample's (u, v) against the trim curve */
+		float *uv = aovbase + (size_t)r->naov_planes * n;
+		memcpy(uv, g.u, sizeof(float) * n);
+		memcpy(uv + n, g.v, sizeof(float) * n);
+		sh->hg.trim_uv = uv;
+		sh->hg.trim = trim;
+	}
 	job->sh = sh;
 	t->grids++;
 	t->points += n;
@@ -1983,6 +1993,31 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	return ok;
 }
 
+/*
+ * A trimmed NuPatch's micropolygons whose centre (u, v) the trim curve
+ * keeps, 1 per kept micropolygon, into *keep (NULL when not trimmed).
+ * False when memory runs out.
+ */
+static bool trim_keep(const struct reyes_prim *prim, const struct reyes_grid *g, uint8_t **keep)
+{
+	const struct reyes_trim *trim = prim->nurbs ? prim->nurbs->trim : NULL;
+	uint32_t nu = g->nu, nv = g->nv;
+	*keep = NULL;
+	if (!trim || nu < 2 || nv < 2)
+		return true;
+	*keep = malloc((size_t)(nu - 1) * (nv - 1));
+	if (!*keep)
+		return false;
+	for (uint32_t j = 0; j + 1 < nv; j++)
+		for (uint32_t i = 0; i + 1 < nu; i++) {
+			uint32_t k = j * nu + i;
+			float u = 0.25f * (g->u[k] + g->u[k + 1] + g->u[k + nu] + g->u[k + nu + 1]);
+			float v = 0.25f * (g->v[k] + g->v[k + 1] + g->v[k + nu] + g->v[k + nu + 1]);
+			(*keep)[j * (nu - 1) + i] = reyes_trim_keeps(trim, u, v);
+		}
+	return true;
+}
+
 bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *opts)
 {
 	struct render r = { 0 };
@@ -2059,7 +2094,14 @@ bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *o
 				ok = false;
 				break;
 			}
-			ok = opts->grid(opts->user, prim, c.P0, c.nu, c.nv);
+			uint8_t *keep;
+			if (!trim_keep(prim, &g, &keep)) {
+				fprintf(r.diag, "relight: error: out of memory dicing primitive %u\n",
+					prim->id);
+				ok = false;
+			}
+			ok = ok && opts->grid(opts->user, prim, c.P0, c.nu, c.nv, keep);
+			free(keep);
 			free(c.P0);
 			reyes_grid_finish(&g);
 		}

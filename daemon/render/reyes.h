@@ -119,10 +119,12 @@ struct reyes_dice_opts {
 	 * A grid of @prim, @nu x @nv points (point (i, j) is k = j * nu + i),
 	 * displaced, in camera space at shutter open, planar: x, y, z of point
 	 * k at P[k], P[n + k], P[2n + k] with n = nu * nv. @P is the dicer's,
-	 * valid during the call. Return false to stop (dicing then fails).
+	 * valid during the call. @keep: NULL, or for a trimmed NuPatch one
+	 * byte per micropolygon (i, j) at j * (nu - 1) + i, 0 where the trim
+	 * curve cuts its centre away. Return false to stop (dicing then fails).
 	 */
 	bool (*grid)(void *user, const struct reyes_prim *prim, const float *P, uint32_t nu,
-		     uint32_t nv);
+		     uint32_t nv, const uint8_t *keep);
 };
 
 /**

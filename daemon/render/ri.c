@@ -2437,6 +2437,8 @@ static const struct handler handlers[] = {
 	{"Patch", reyes_ri_req_patch, F_MOTION | F_PRIM},
 	{"PatchMesh", reyes_ri_req_patch_mesh, F_MOTION | F_PRIM},
 	{"SubdivisionMesh", reyes_ri_req_subdivision_mesh, F_MOTION | F_PRIM},
+	{"NuPatch", reyes_ri_req_nu_patch, F_MOTION | F_PRIM},
+	{"TrimCurve", reyes_ri_req_trim_curve, F_PRIM},
 };
 
 /*

@@ -160,6 +160,11 @@ struct attrstate {
 	float detail_range[4];          /* DetailRange minvisible ... maxvisible */
 	bool has_detail_range;
 	unsigned objset;                /* OBJ_*: set since ObjectBegin */
+	/* TrimCurve: the trim region of the NuPatches that follow (NULL: none);
+	   trim_bad: the last TrimCurve was malformed (its NuPatches are dropped). */
+	const struct reyes_trim *trim;
+	bool trim_bad;
+	struct rib_loc trim_loc;
 };
 
 struct gstate {
@@ -487,6 +492,12 @@ void reyes_ri_req_patch(struct ri *ri, const struct rib_request *r);
 
 /** PatchMesh: a mesh of bilinear or bicubic patches, each direction periodic or not. */
 void reyes_ri_req_patch_mesh(struct ri *ri, const struct rib_request *r);
+
+/* ---- ri_nurbs.c: NuPatch and TrimCurve ---- */
+void reyes_ri_req_nu_patch(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_trim_curve(struct ri *ri, const struct rib_request *r);
+/** Do two motion samples of a NuPatch agree in all but their points? */
+bool reyes_ri_nurbs_same(const struct reyes_prim *a, const struct reyes_prim *b);
 
 /** Basis: the bicubic bases and steps of the patches that follow (an attribute). */
 void reyes_ri_req_basis(struct ri *ri, const struct rib_request *r);

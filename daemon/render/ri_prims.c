@@ -1050,6 +1050,8 @@ static const char *topology_mismatch(const struct reyes_prim *a, const struct re
 		return "patch mesh";
 	} else if (a->kind == REYES_SUBDIV && !reyes_ri_subdiv_same(a, b)) {
 		return "subdivision mesh";
+	} else if (a->kind == REYES_NUPATCH && !reyes_ri_nurbs_same(a, b)) {
+		return "NuPatch orders, knots, ranges or weights";
 	}
 	if (a->npoints != b->npoints)
 		return "number of points";
@@ -1265,7 +1267,7 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 	}
 }
 
-/* ---- for the primitives of other files (ri_subdiv.c) --------------------------------- */
+/* ---- for the primitives parsed in files of their own (ri_subdiv.c, ri_nurbs.c, ...) --- */
 
 bool reyes_ri_geometry_ok(struct ri *ri, const struct rib_request *r)
 {

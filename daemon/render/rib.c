@@ -162,6 +162,9 @@ static const struct reqdef reqdefs[] = {
 	{"PatchMesh", "type:s nu:i uwrap:s nv:i vwrap:s", TAKES_PARAMS | PRIMITIVE},
 	{"SubdivisionMesh", "scheme:s nvertices:I vertices:I",
 	 TAKES_PARAMS | PRIMITIVE | MORE_ARRAYS},
+	{"NuPatch", "nu:i uorder:i uknot:a umin:n umax:n nv:i vorder:i vknot:a vmin:n vmax:n",
+	 TAKES_PARAMS | PRIMITIVE},
+	{"TrimCurve", "ncurves:I order:I knot:a min:a max:a n:I u:a v:a w:a", 0},
 };
 
 /*
@@ -173,9 +176,9 @@ static const char *const unsupported[] = {
 	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Blobby",
 	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Curves", "Deformation",
 	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Geometry", "IfBegin",
-	"IfEnd", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
+	"IfEnd", "MakeBrickMap", "MakeBump", "Perspective",
 	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
-	"Shader", "System", "TrimCurve",
+	"Shader", "System",
 };
 
 /* ---- diagnostics ------------------------------------------------------------ */

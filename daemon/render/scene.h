@@ -135,6 +135,8 @@ struct reyes_attrs {
 	float object_to_world[2][16];         /* at shutter open and close */
 };
 
+struct reyes_nurbs;
+
 enum reyes_class { REYES_CONSTANT, REYES_UNIFORM, REYES_VARYING, REYES_VERTEX, REYES_FACEVARYING };
 
 /** A primitive variable: P, N, Cs, Os, s, t, st, or user data for shader parameters. */
@@ -159,6 +161,7 @@ enum reyes_prim_kind {
 	REYES_POLYGONS,     /* Polygon, GeneralPolygon, PointsPolygons, PointsGeneralPolygons */
 	REYES_PATCHES,      /* Patch and PatchMesh, bilinear or bicubic */
 	REYES_SUBDIV,       /* SubdivisionMesh "catmull-clark" (subdiv: geom_subdiv.c) */
+	REYES_NUPATCH,      /* NuPatch (NURBS, any order, rational, trimmed): see nurbs.h */
 };
 
 /* A Catmull-Clark SubdivisionMesh: its faces and tags (ri_subdiv.c). */
@@ -206,6 +209,8 @@ struct reyes_prim {
 
 	/* REYES_SUBDIV: the mesh (its faces, creases, corners, holes). */
 	const struct reyes_subdiv *subdiv;
+	/* REYES_NUPATCH: orders, knots, weights, ranges and trim region (nurbs.h). */
+	const struct reyes_nurbs *nurbs;
 
 	uint32_t npoints;                     /* vertex positions ("P" count) */
 	const struct reyes_primvar *vars;     /* "P" is always present (vertex point) */

@@ -616,7 +616,7 @@ static void test_unhandled(void)
 	static const char text[] =
 		"Foo 1 2 \"x\" [3]\nWorldBegin\n"
 		"WorldBgin\nworldend \"a\" [\"b\" 1]\nVersion 3\n"
-		"NuPatch 4 1 [0 0 0 0 1 1 1 1] 0 1 \"P\" [0 0 0 1]\nWorldEnd\n"
+		"Deformation \"twist\" \"angle\" [0 0 0 1]\nWorldEnd\n"
 		"Geometry \"teapot\" \"background\" [0 0 0]\n";
 	struct rl_strbuf b = {0};
 	int nerr = -1;
@@ -627,7 +627,7 @@ static void test_unhandled(void)
 				     "WorldBgin@3 unknown 0 0 WorldBegin\n"
 				     "worldend@4 unknown 0 0 WorldEnd\n"
 				     "Version@5 unknown 0 0 version\n"
-				     "NuPatch@6 unsupported 0 0 -\n"
+				     "Deformation@6 unsupported 0 0 -\n"
 				     "WorldEnd@7 known 0 0 -\n"
 				     "Geometry@8 unsupported 0 0 -\n");
 	rl_strbuf_finish(&b);
