@@ -28,6 +28,7 @@
  * points or faces change in place must be given to reyes_prim_pieces again.
  */
 #include "geom.h"
+#include "geom_curves.h"
 
 #include "arena.h"
 #include "log.h"
@@ -1515,6 +1516,11 @@ bool reyes_prim_pieces(const struct reyes_prim *p, struct reyes_patch **out, siz
 			}
 		count = (size_t)ncu * ncv;
 		break;
+	case REYES_CURVES:
+	case REYES_POINTS:
+		if (!reyes_curves_count(p, &count))
+			return false;
+		break;
 	default:
 		count = quadric_setup(p, q, &shape) ? 1 : 0;
 		break;
@@ -1561,6 +1567,10 @@ void reyes_patch_split(const struct reyes_patch *pa, bool along_u, struct reyes_
 
 void reyes_patch_bound(const struct reyes_patch *pa, int t, float lo[3], float hi[3])
 {
+	if (pa && pa->prim && (pa->prim->kind == REYES_CURVES || pa->prim->kind == REYES_POINTS)) {
+		reyes_curves_bound(pa, t, lo, hi);
+		return;
+	}
 	double blo[3] = { INFINITY, INFINITY, INFINITY }, bhi[3] = { -INFINITY, -INFINITY, -INFINITY };
 	struct piece pc;
 	if (!setup_piece(pa, &pc)) {
@@ -1757,6 +1767,8 @@ static float *named_var(const struct piece *pc, const struct dice *d, const stru
 bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 		      struct reyes_grid *g)
 {
+	if (pa && pa->prim && (pa->prim->kind == REYES_CURVES || pa->prim->kind == REYES_POINTS))
+		return reyes_curves_dice(pa, nu, nv, g);
 	if (!g)
 		return false;
 	memset(g, 0, sizeof(*g));

@@ -2292,6 +2292,7 @@ static void build_scene(struct ri *ri, struct reyes_scene *sc)
 	sc->nlights = (uint32_t)ri->lights.len;
 	sc->prims = ri->prims.data;
 	sc->nprims = (uint32_t)ri->prims.len;
+	reyes_ri_face_camera(sc);
 	uint32_t ns = (uint32_t)ri->spaces.len;
 	const char **names = rl_arena_alloc(a, sizeof(*names) * (ns ? ns : 1));
 	float (*m)[16] = rl_arena_alloc(a, sizeof(*m) * (ns ? ns : 1));
@@ -2430,6 +2431,8 @@ static const struct handler handlers[] = {
 	{"PointsGeneralPolygons", reyes_ri_req_points_polygons, F_MOTION | F_PRIM},
 	{"Patch", reyes_ri_req_patch, F_MOTION | F_PRIM},
 	{"PatchMesh", reyes_ri_req_patch_mesh, F_MOTION | F_PRIM},
+	{"Curves", reyes_ri_req_curves, F_MOTION | F_PRIM},
+	{"Points", reyes_ri_req_points, F_MOTION | F_PRIM},
 };
 
 /*

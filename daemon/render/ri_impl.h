@@ -516,4 +516,42 @@ void reyes_ri_motion_end(struct ri *ri, bool apply);
 /** The object definition closes (or unwinds). */
 void reyes_ri_object_end(struct ri *ri);
 
+/* ---- ri_prims.c: for primitives parsed in files of their own ------------------------ */
+
+/** Can a primitive go here (inside the world or an object definition)? Reported if not. */
+bool reyes_ri_geometry_ok(struct ri *ri, const struct rib_request *r);
+
+/** The number of points "P" (or "Pw") of @r gives; false (reported) when missing or uneven. */
+bool reyes_ri_point_count(struct ri *ri, const struct rib_request *r, uint32_t *np);
+
+/** A zeroed primitive of @kind in the current arena. */
+struct reyes_prim *reyes_ri_new_prim(struct ri *ri, enum reyes_prim_kind kind);
+
+/**
+ * The primitive variables of @r into @p, each checked against the count of
+ * its class (sizes[class] items); "P" is required. False when reported.
+ */
+bool reyes_ri_prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t sizes[5],
+			struct reyes_prim *p);
+
+/** A finished primitive to the world, the object being defined or the motion block. */
+void reyes_ri_emit_prim(struct ri *ri, const struct rib_request *r, struct reyes_prim *p);
+
+/* ---- ri_curves.c: Curves and Points ------------------------------------------------- */
+
+/** Curves TYPE [NVERTICES] WRAP ...: linear or cubic ribbons. */
+void reyes_ri_req_curves(struct ri *ri, const struct rib_request *r);
+
+/** Points ...: a disk per point. */
+void reyes_ri_req_points(struct ri *ri, const struct rib_request *r);
+
+/** Do two motion samples of a Curves request have the same curves? */
+bool reyes_ri_same_curves(const struct reyes_curves *a, const struct reyes_curves *b);
+
+/**
+ * The eye of every Curves and Points primitive of the finished scene @sc in
+ * its object space at both shutter times (what their ribbons and disks face).
+ */
+void reyes_ri_face_camera(struct reyes_scene *sc);
+
 #endif

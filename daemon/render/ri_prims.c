@@ -224,6 +224,9 @@ static const struct {
 	{"s", {.cls = REYES_VARYING, .type = SL_TYPE_FLOAT}},
 	{"t", {.cls = REYES_VARYING, .type = SL_TYPE_FLOAT}},
 	{"st", {.cls = REYES_VARYING, .type = SL_TYPE_FLOAT, .arraylen = 2}},
+	/* Curves and Points */
+	{"width", {.cls = REYES_VARYING, .type = SL_TYPE_FLOAT}},
+	{"constantwidth", {.cls = REYES_CONSTANT, .type = SL_TYPE_FLOAT}},
 };
 
 /*
@@ -1047,6 +1050,8 @@ static const char *topology_mismatch(const struct reyes_prim *a, const struct re
 		    a->uperiodic != b->uperiodic || a->vperiodic != b->vperiodic ||
 		    a->heightfield != b->heightfield)) {
 		return "patch mesh";
+	} else if (a->kind == REYES_CURVES && !reyes_ri_same_curves(a->curves, b->curves)) {
+		return "curves";
 	}
 	if (a->npoints != b->npoints)
 		return "number of points";
@@ -1259,4 +1264,32 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 		q.id = (uint32_t)ri->prims.len;
 		rl_vec_push(ri->prims, q);
 	}
+}
+
+/* ---- for primitives whose requests live in files of their own (ri_curves.c) ---------- */
+
+bool reyes_ri_geometry_ok(struct ri *ri, const struct rib_request *r)
+{
+	return geometry_ok(ri, r);
+}
+
+bool reyes_ri_point_count(struct ri *ri, const struct rib_request *r, uint32_t *np)
+{
+	return point_count(ri, r, false, np);
+}
+
+struct reyes_prim *reyes_ri_new_prim(struct ri *ri, enum reyes_prim_kind kind)
+{
+	return new_prim(ri, kind);
+}
+
+bool reyes_ri_prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t sizes[5],
+			struct reyes_prim *p)
+{
+	return prim_vars(ri, r, sizes, true, p);
+}
+
+void reyes_ri_emit_prim(struct ri *ri, const struct rib_request *r, struct reyes_prim *p)
+{
+	emit_prim(ri, r, p);
 }

@@ -156,6 +156,8 @@ static const struct reqdef reqdefs[] = {
 	{"PointsGeneralPolygons", "nloops:I nvertices:I vertices:I", TAKES_PARAMS | PRIMITIVE},
 	{"Patch", "type:s", TAKES_PARAMS | PRIMITIVE},
 	{"PatchMesh", "type:s nu:i uwrap:s nv:i vwrap:s", TAKES_PARAMS | PRIMITIVE},
+	{"Curves", "type:s nvertices:I wrap:s", TAKES_PARAMS | PRIMITIVE},
+	{"Points", "", TAKES_PARAMS | PRIMITIVE},
 };
 
 /*
@@ -165,10 +167,10 @@ static const struct reqdef reqdefs[] = {
  */
 static const char *const unsupported[] = {
 	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Blobby",
-	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Curves", "Deformation",
+	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Deformation",
 	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Geometry", "IfBegin",
 	"IfEnd", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
-	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
+	"Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
 	"Shader", "SolidBegin", "SolidEnd", "SubdivisionMesh", "System", "TrimCurve",
 };
 

@@ -157,6 +157,24 @@ enum reyes_prim_kind {
 	REYES_TORUS,        /* q: majorradius minorradius phimin phimax thetamax */
 	REYES_POLYGONS,     /* Polygon, GeneralPolygon, PointsPolygons, PointsGeneralPolygons */
 	REYES_PATCHES,      /* Patch and PatchMesh, bilinear or bicubic */
+	REYES_CURVES,       /* Curves: ribbons along linear or cubic curves (struct reyes_curves) */
+	REYES_POINTS,       /* Points: a disk per "P" point */
+};
+
+/*
+ * REYES_CURVES: the curves of one Curves request. Curve c has nverts[c]
+ * vertices from vertex vfirst[c] and pieces (segments) sfirst[c] to
+ * sfirst[c + 1] - 1; its varying items start at sfirst[c] (periodic) or
+ * sfirst[c] + c. Cubic curves go through the v basis and its step.
+ */
+struct reyes_curves {
+	bool cubic, periodic;
+	uint32_t ncurves;
+	const uint32_t *nverts;
+	const uint32_t *vfirst;               /* ncurves */
+	const uint32_t *sfirst;               /* ncurves + 1: sfirst[ncurves] is the piece count */
+	float basis[16];                      /* rows: coefficients of t^3..1 */
+	uint32_t vstep;
 };
 
 struct reyes_prim {
@@ -182,6 +200,13 @@ struct reyes_prim {
 	/* A height field ("Pz"): the surface's x and y are its u and v over the
 	   whole mesh, z is "P"'s z through the basis (P's x and y are unused). */
 	bool heightfield;
+
+	/* REYES_CURVES and REYES_POINTS (geom_curves.c): ribbons and disks face
+	   the camera. eye[t] is the eye in object space at shutter open and close
+	   (w = 1), or for an orthographic camera the direction towards it (w = 0),
+	   set when the scene is finished (reyes_ri_face_camera). */
+	const struct reyes_curves *curves;    /* REYES_CURVES only */
+	float eye[2][4];
 
 	uint32_t npoints;                     /* vertex positions ("P" count) */
 	const struct reyes_primvar *vars;     /* "P" is always present (vertex point) */
