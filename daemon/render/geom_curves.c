@@ -464,12 +464,24 @@ static void put3(float *dst, uint32_t n, uint32_t k, const double a[3])
 		dst[(size_t)c * n + k] = sl_to_float(a[c]);
 }
 
+/*
+ * Should the grid wind the other way? The hider takes a micropolygon for
+ * front-facing when its raster winding and the attributes' flip agree, and
+ * a transform that mirrors reverses the winding: a ribbon or disk winds so
+ * that it is front-facing whatever the two (a one-sided curve is never
+ * culled), while Ng faces F either way.
+ */
+static bool reversed(const struct reyes_prim *p)
+{
+	return (p->attrs && p->attrs->flip_normals) != p->mirror;
+}
+
 /* Positions (and at @ti == 0 derivatives and normals) of a curve piece's grid. */
 static void dice_ribbon(const struct cpiece *c, const struct reyes_patch *pa, int ti,
 			const double *rows, struct reyes_grid *g)
 {
 	const struct reyes_primvar *wv = width_var(c->p), *N = normals_of(c);
-	bool flip = c->p->attrs && c->p->attrs->flip_normals;
+	bool flip = reversed(c->p);
 	uint32_t nu = g->nu, n = g->n;
 	for (uint32_t j = 0; j < g->nv; j++) {
 		double C[3], T[3], F[3], W[3], t = rows[j];
@@ -492,7 +504,7 @@ static void dice_ribbon(const struct cpiece *c, const struct reyes_patch *pa, in
 			double du[3] = { w * W[0], w * W[1], w * W[2] };
 			double dv[3] = { T[0] * c->nseg, T[1] * c->nseg, T[2] * c->nseg }, Ng[3];
 			cross3(Ng, du, dv);
-			if (flip)
+			if (Ng[0] * F[0] + Ng[1] * F[1] + Ng[2] * F[2] < 0)
 				Ng[0] = -Ng[0], Ng[1] = -Ng[1], Ng[2] = -Ng[2];
 			if (!(len3(Ng) > 1e-12 * (len3(du) + 1e-30) * (len3(dv) + 1e-30)))
 				memcpy(Ng, F, sizeof(Ng));   /* a tip of zero width faces F too */
@@ -519,8 +531,7 @@ static void dice_disk(const struct cpiece *c, const struct reyes_patch *pa, int 
 	/* X x Y = -F, so that dPdu x dPdv points along F */
 	perp3(X, F);
 	cross3(Y, X, F);
-	bool flip = c->p->attrs && c->p->attrs->flip_normals;
-	if (flip)
+	if (reversed(c->p))
 		Y[0] = -Y[0], Y[1] = -Y[1], Y[2] = -Y[2];
 	for (uint32_t j = 0; j < nv; j++) {
 		double v = j == nv - 1 ? pa->v1 : pa->v0 + ((double)pa->v1 - pa->v0) * j / (nv - 1);

@@ -151,6 +151,8 @@ void reyes_ri_face_camera(struct reyes_scene *sc)
 				   t ? o->world_to_camera1 : o->world_to_camera);
 			float *e = p->eye[t];
 			memset(e, 0, sizeof(p->eye[t]));
+			if (t == 0)
+				p->mirror = sl_m44_det(m) < 0;
 			if (!sl_m44_inverse(inv, m))
 				continue;       /* geometry then faces down +z */
 			if (o->perspective) {

@@ -204,9 +204,11 @@ struct reyes_prim {
 	/* REYES_CURVES and REYES_POINTS (geom_curves.c): ribbons and disks face
 	   the camera. eye[t] is the eye in object space at shutter open and close
 	   (w = 1), or for an orthographic camera the direction towards it (w = 0),
-	   set when the scene is finished (reyes_ri_face_camera). */
+	   set when the scene is finished (reyes_ri_face_camera), as is mirror:
+	   the object-to-camera transform at shutter open turns space inside out. */
 	const struct reyes_curves *curves;    /* REYES_CURVES only */
 	float eye[2][4];
+	bool mirror;
 
 	uint32_t npoints;                     /* vertex positions ("P" count) */
 	const struct reyes_primvar *vars;     /* "P" is always present (vertex point) */

@@ -17,6 +17,7 @@
 #   - n disjoint points of radius r cover n pi r^2;
 #   - a half-opaque curve and points: alpha 0.5 over their area;
 #   - motion blur: a moving point and a deforming curve keep their area;
+#   - one-sided curves and points, mirrored or reversed, are not culled;
 #   - a periodic linear square loop of side s covers 4 s w - w^2;
 #   - malformed Curves and Points: FILE:LINE errors, that primitive dropped,
 #     the rest rendered (exit 1); --strict makes their warnings errors.
@@ -189,6 +190,21 @@ lit = [x for x in range(200) if row[1 + 4 * x + 3] > 0]
 print("moving point: row 60 covered from pixel %d to %d" % (lit[0], lit[-1]))
 assert lit[-1] - lit[0] > 90  # 0.6 of travel plus 0.4 of disk: 100 pixels
 PY
+
+# ---- one-sided, mirrored, reversed: a ribbon or disk faces the camera, never culled ----
+scene onesided '  Sides 1
+  AttributeBegin
+    ReverseOrientation
+    Curves "linear" [2] "nonperiodic" "P" [-0.6 0.5 0  0.6 0.5 0] "constantwidth" [0.1]
+  AttributeEnd
+  AttributeBegin
+    Scale -1 1 1
+    Curves "linear" [2] "nonperiodic" "P" [-0.6 0 0  0.6 0 0] "constantwidth" [0.1]
+    Points "P" [0.5 -0.5 0] "constantwidth" [0.2]
+    ReverseOrientation
+    Points "P" [-0.5 -0.5 0] "constantwidth" [0.2]
+  AttributeEnd'
+coverage onesided "2 * 0.1 * 1.2 + 2 * pi * 0.1 ** 2"
 
 # ---- periodic wrap ----
 scene square '  Curves "linear" [4] "periodic" "P" [-0.3 -0.3 0  0.3 -0.3 0  0.3 0.3 0  -0.3 0.3 0] "constantwidth" [0.1]'
