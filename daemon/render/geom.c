@@ -94,6 +94,8 @@ bool reyes_prim_deforms(const struct reyes_prim *p)
 		return false;
 	if (p->kind < REYES_POLYGONS)
 		return p->qmoving;
+	if (p->kind == REYES_CURVES || p->kind == REYES_POINTS)
+		return reyes_curves_deform(p);
 	const struct reyes_primvar *P = reyes_prim_var(p, "P");
 	return P && P->values1;
 }

@@ -133,8 +133,7 @@ static bool setup(const struct reyes_patch *pa, struct cpiece *c)
 	c->p = p;
 	c->P[0] = P->values;
 	c->P[1] = P->values1 ? P->values1 : P->values;
-	/* the eye moving in object space turns the ribbons and disks over the shutter */
-	c->moving = P->values1 != NULL || memcmp(p->eye[0], p->eye[1], sizeof(p->eye[0])) != 0;
+	c->moving = reyes_curves_deform(p);
 	if (p->kind == REYES_POINTS) {
 		if (pa->piece >= P->count)
 			return false;
@@ -294,6 +293,14 @@ static const struct reyes_primvar *normals_of(const struct cpiece *c)
 {
 	const struct reyes_primvar *N = c->point ? NULL : reyes_prim_var(c->p, "N");
 	return N && stride_of(N) == 3 && N->values ? N : NULL;
+}
+
+bool reyes_curves_deform(const struct reyes_prim *p)
+{
+	const struct reyes_primvar *P = reyes_prim_var(p, "P"), *w = width_var(p);
+	/* the eye moving in object space turns the ribbons and disks over the shutter */
+	return (P && P->values1) || (w && w->values1) ||
+	       memcmp(p->eye[0], p->eye[1], sizeof(p->eye[0])) != 0;
 }
 
 bool reyes_curves_count(const struct reyes_prim *p, size_t *count)

@@ -16,6 +16,9 @@
  */
 bool reyes_curves_count(const struct reyes_prim *p, size_t *count);
 
+/* As reyes_prim_deforms: points or widths given at close, or an eye that moves. */
+bool reyes_curves_deform(const struct reyes_prim *p);
+
 /* As reyes_patch_bound, for a piece of curves or points. */
 void reyes_curves_bound(const struct reyes_patch *pa, int t, float lo[3], float hi[3]);
 

@@ -16,7 +16,8 @@
 #   - a ribbon facing "N" at 60 degrees from the view covers w l |cos 60|;
 #   - n disjoint points of radius r cover n pi r^2;
 #   - a half-opaque curve and points: alpha 0.5 over their area;
-#   - motion blur: a moving point and a deforming curve keep their area;
+#   - motion blur: a moving point and a deforming curve keep their area, a
+#     growing point covers its time-averaged area;
 #   - one-sided curves and points, mirrored or reversed, are not culled;
 #   - a periodic linear square loop of side s covers 4 s w - w^2;
 #   - malformed Curves and Points: FILE:LINE errors, that primitive dropped,
@@ -173,6 +174,12 @@ scene moving '  MotionBegin [0 1]
     Curves "linear" [2] "nonperiodic" "P" [-0.6 -0.2 0  0.6 -0.2 0] "constantwidth" [0.1]
   MotionEnd'
 coverage moving "pi * 0.2 ** 2 + 0.1 * 1.2"
+# a point growing from radius 0.1 to 0.3 over the shutter: pi (r0^2 + r0 r1 + r1^2) / 3
+scene growing '  MotionBegin [0 1]
+    Points "P" [0 0 0] "constantwidth" [0.2]
+    Points "P" [0 0 0] "constantwidth" [0.6]
+  MotionEnd'
+coverage growing "pi * (0.1 ** 2 + 0.1 * 0.3 + 0.3 ** 2) / 3"
 # the streak is wider than the point: it really moved
 checks=$((checks + 1))
 python3 - "$work/moving.png" <<'PY' || fail "the moving point left no streak"
