@@ -71,8 +71,8 @@ static bool unit3(double a[3])
 static void perp3(double r[3], const double a[3])
 {
 	double axis[3] = { 0.0, 0.0, 0.0 };
-	int k = fabs(a[0]) <= fabs(a[1]) && fabs(a[0]) <= fabs(a[2]) ? 0 : fabs(a[1]) <= fabs(a[2]) ? 1 : 2;
-	axis[k] = 1.0;
+	double x = fabs(a[0]), y = fabs(a[1]), z = fabs(a[2]);
+	axis[x <= y && x <= z ? 0 : y <= z ? 1 : 2] = 1.0;   /* the axis least along a */
 	cross3(r, a, axis);
 	if (!unit3(r))
 		r[0] = 1.0, r[1] = r[2] = 0.0;
@@ -544,7 +544,8 @@ static void dice_disk(const struct cpiece *c, const struct reyes_patch *pa, int 
 		double v = j == nv - 1 ? pa->v1 : pa->v0 + ((double)pa->v1 - pa->v0) * j / (nv - 1);
 		for (uint32_t i = 0; i < nu; i++) {
 			uint32_t k = j * nu + i;
-			double u = i == nu - 1 ? pa->u1 : pa->u0 + ((double)pa->u1 - pa->u0) * i / (nu - 1);
+			double u = i == nu - 1 ? pa->u1
+				   : pa->u0 + ((double)pa->u1 - pa->u0) * i / (nu - 1);
 			double cs = cos(2.0 * PI_D * u), sn = sin(2.0 * PI_D * u), P[3], du[3], dv[3];
 			for (int e = 0; e < 3; e++) {
 				P[e] = C[e] + r * v * (cs * X[e] + sn * Y[e]);

@@ -12,6 +12,7 @@
  * ribbon's width in object space (default 1), "N" makes it face N.
  *
  * Points ...: "P", "width" (varying, one per point) or "constantwidth".
+ * Disks always face the camera: "N" is warned about and not used.
  */
 #include "ri_impl.h"
 
@@ -124,8 +125,12 @@ void reyes_ri_req_points(struct ri *ri, const struct rib_request *r)
 	struct reyes_prim *p = reyes_ri_new_prim(ri, REYES_POINTS);
 	p->npoints = np;
 	uint32_t sizes[5] = {1, 1, np, np, np};
-	if (reyes_ri_prim_vars(ri, r, sizes, p) && widths_ok(ri, r, p))
-		reyes_ri_emit_prim(ri, r, p);
+	if (!reyes_ri_prim_vars(ri, r, sizes, p) || !widths_ok(ri, r, p))
+		return;
+	if (reyes_prim_var(p, "N"))
+		reyes_ri_warn(ri, r->loc, "Points: \"N\" (disks facing N) is not supported: the "
+			      "disks face the camera");
+	reyes_ri_emit_prim(ri, r, p);
 }
 
 bool reyes_ri_same_curves(const struct reyes_curves *a, const struct reyes_curves *b)

@@ -253,6 +253,11 @@ scene warned "$good
 run "warning" bash -c "cd '$work' && '$relight' render -q -o warned.png warned.rib"
 expect_status 0
 expect_stderr "^warned.rib:11: warning: Points: primitive variable 'fuzz' has no type"
+# disks facing N are not supported: a warning, the disk faces the camera
+scene pointsN '  Points "P" [0 0 0] "constantwidth" [0.4] "N" [1 0 0]'
+run "Points N" bash -c "cd '$work' && '$relight' render -q -o pointsN.png pointsN.rib"
+expect_status 0
+expect_stderr '^pointsN.rib:10: warning: Points: "N" \(disks facing N\) is not supported: the disks face the camera'
 run "--strict" bash -c "cd '$work' && '$relight' render -q --strict -o warned.png warned.rib"
 expect_no_crash
 expect_status 1
