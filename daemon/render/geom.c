@@ -30,6 +30,7 @@
 #include "geom.h"
 #include "geom_subdiv.h"
 #include "nurbs.h"
+#include "geom_curves.h"
 
 #include "arena.h"
 #include "log.h"
@@ -95,6 +96,8 @@ bool reyes_prim_deforms(const struct reyes_prim *p)
 		return false;
 	if (p->kind < REYES_POLYGONS)
 		return p->qmoving;
+	if (p->kind == REYES_CURVES || p->kind == REYES_POINTS)
+		return reyes_curves_deform(p);
 	const struct reyes_primvar *P = reyes_prim_var(p, "P");
 	return P && P->values1;
 }
@@ -1521,6 +1524,11 @@ bool reyes_prim_pieces(const struct reyes_prim *p, struct reyes_patch **out, siz
 			}
 		count = (size_t)ncu * ncv;
 		break;
+	case REYES_CURVES:
+	case REYES_POINTS:
+		if (!reyes_curves_count(p, &count))
+			return false;
+		break;
 	default:
 		count = quadric_setup(p, q, &shape) ? 1 : 0;
 		break;
@@ -1573,6 +1581,10 @@ void reyes_patch_bound(const struct reyes_patch *pa, int t, float lo[3], float h
 	}
 	if (pa && pa->prim && pa->prim->kind == REYES_NUPATCH) {
 		reyes_nurbs_bound(pa, t, lo, hi);
+		return;
+	}
+	if (pa && pa->prim && (pa->prim->kind == REYES_CURVES || pa->prim->kind == REYES_POINTS)) {
+		reyes_curves_bound(pa, t, lo, hi);
 		return;
 	}
 	double blo[3] = { INFINITY, INFINITY, INFINITY }, bhi[3] = { -INFINITY, -INFINITY, -INFINITY };
@@ -1771,6 +1783,8 @@ static float *named_var(const struct piece *pc, const struct dice *d, const stru
 bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 		      struct reyes_grid *g)
 {
+	if (pa && pa->prim && (pa->prim->kind == REYES_CURVES || pa->prim->kind == REYES_POINTS))
+		return reyes_curves_dice(pa, nu, nv, g);
 	if (!g)
 		return false;
 	if (pa && pa->prim && pa->prim->kind == REYES_SUBDIV)

@@ -2293,6 +2293,7 @@ static void build_scene(struct ri *ri, struct reyes_scene *sc)
 	sc->prims = ri->prims.data;
 	sc->nprims = (uint32_t)ri->prims.len;
 	reyes_ri_csg_scene(ri, a, &sc->csg);
+	reyes_ri_face_camera(sc);
 	uint32_t ns = (uint32_t)ri->spaces.len;
 	const char **names = rl_arena_alloc(a, sizeof(*names) * (ns ? ns : 1));
 	float (*m)[16] = rl_arena_alloc(a, sizeof(*m) * (ns ? ns : 1));
@@ -2439,6 +2440,8 @@ static const struct handler handlers[] = {
 	{"SubdivisionMesh", reyes_ri_req_subdivision_mesh, F_MOTION | F_PRIM},
 	{"NuPatch", reyes_ri_req_nu_patch, F_MOTION | F_PRIM},
 	{"TrimCurve", reyes_ri_req_trim_curve, F_PRIM},
+	{"Curves", reyes_ri_req_curves, F_MOTION | F_PRIM},
+	{"Points", reyes_ri_req_points, F_MOTION | F_PRIM},
 };
 
 /*

@@ -583,4 +583,21 @@ void reyes_ri_csg_world_end(struct ri *ri, struct rib_loc at);
 /** The world's CSG nodes, copied into @a, for its scene. */
 void reyes_ri_csg_scene(struct ri *ri, struct rl_arena *a, struct reyes_csg *out);
 
+/* ---- ri_curves.c: Curves and Points ------------------------------------------------- */
+
+/** Curves TYPE [NVERTICES] WRAP ...: linear or cubic ribbons. */
+void reyes_ri_req_curves(struct ri *ri, const struct rib_request *r);
+
+/** Points ...: a disk per point. */
+void reyes_ri_req_points(struct ri *ri, const struct rib_request *r);
+
+/** Do two motion samples of a Curves request have the same curves? */
+bool reyes_ri_same_curves(const struct reyes_curves *a, const struct reyes_curves *b);
+
+/**
+ * The eye of every Curves and Points primitive of the finished scene @sc in
+ * its object space at both shutter times (what their ribbons and disks face).
+ */
+void reyes_ri_face_camera(struct reyes_scene *sc);
+
 #endif

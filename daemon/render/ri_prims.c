@@ -224,6 +224,9 @@ static const struct {
 	{"s", {.cls = REYES_VARYING, .type = SL_TYPE_FLOAT}},
 	{"t", {.cls = REYES_VARYING, .type = SL_TYPE_FLOAT}},
 	{"st", {.cls = REYES_VARYING, .type = SL_TYPE_FLOAT, .arraylen = 2}},
+	/* Curves and Points */
+	{"width", {.cls = REYES_VARYING, .type = SL_TYPE_FLOAT}},
+	{"constantwidth", {.cls = REYES_CONSTANT, .type = SL_TYPE_FLOAT}},
 };
 
 /*
@@ -1052,6 +1055,8 @@ static const char *topology_mismatch(const struct reyes_prim *a, const struct re
 		return "subdivision mesh";
 	} else if (a->kind == REYES_NUPATCH && !reyes_ri_nurbs_same(a, b)) {
 		return "NuPatch orders, knots, ranges or weights";
+	} else if (a->kind == REYES_CURVES && !reyes_ri_same_curves(a->curves, b->curves)) {
+		return "curves";
 	}
 	if (a->npoints != b->npoints)
 		return "number of points";

@@ -165,6 +165,8 @@ static const struct reqdef reqdefs[] = {
 	{"NuPatch", "nu:i uorder:i uknot:a umin:n umax:n nv:i vorder:i vknot:a vmin:n vmax:n",
 	 TAKES_PARAMS | PRIMITIVE},
 	{"TrimCurve", "ncurves:I order:I knot:a min:a max:a n:I u:a v:a w:a", 0},
+	{"Curves", "type:s nvertices:I wrap:s", TAKES_PARAMS | PRIMITIVE},
+	{"Points", "", TAKES_PARAMS | PRIMITIVE},
 };
 
 /*
@@ -174,10 +176,10 @@ static const struct reqdef reqdefs[] = {
  */
 static const char *const unsupported[] = {
 	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Blobby",
-	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Curves", "Deformation",
+	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Deformation",
 	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Geometry", "IfBegin",
 	"IfEnd", "MakeBrickMap", "MakeBump", "Perspective",
-	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
+	"Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
 	"Shader", "System",
 };
 

@@ -162,6 +162,8 @@ enum reyes_prim_kind {
 	REYES_PATCHES,      /* Patch and PatchMesh, bilinear or bicubic */
 	REYES_SUBDIV,       /* SubdivisionMesh "catmull-clark" (subdiv: geom_subdiv.c) */
 	REYES_NUPATCH,      /* NuPatch (NURBS, any order, rational, trimmed): see nurbs.h */
+	REYES_CURVES,       /* Curves: ribbons along linear or cubic curves (struct reyes_curves) */
+	REYES_POINTS,       /* Points: a disk per "P" point */
 };
 
 /* A Catmull-Clark SubdivisionMesh: its faces and tags (ri_subdiv.c). */
@@ -181,6 +183,22 @@ struct reyes_subdiv {
 	int interp_boundary;                  /* "interpolateboundary": 0 none, 1 edges and
 						 corners, 2 edges only (prman) */
 	int fvar_boundary;                    /* "facevaryinginterpolateboundary" 0..3, default 1 */
+};
+
+/*
+ * REYES_CURVES: the curves of one Curves request. Curve c has nverts[c]
+ * vertices from vertex vfirst[c] and pieces (segments) sfirst[c] to
+ * sfirst[c + 1] - 1; its varying items start at sfirst[c] (periodic) or
+ * sfirst[c] + c. Cubic curves go through the v basis and its step.
+ */
+struct reyes_curves {
+	bool cubic, periodic;
+	uint32_t ncurves;
+	const uint32_t *nverts;
+	const uint32_t *vfirst;               /* ncurves */
+	const uint32_t *sfirst;               /* ncurves + 1: sfirst[ncurves] is the piece count */
+	float basis[16];                      /* rows: coefficients of t^3..1 */
+	uint32_t vstep;
 };
 
 struct reyes_prim {
@@ -211,6 +229,14 @@ struct reyes_prim {
 	const struct reyes_subdiv *subdiv;
 	/* REYES_NUPATCH: orders, knots, weights, ranges and trim region (nurbs.h). */
 	const struct reyes_nurbs *nurbs;
+	/* REYES_CURVES and REYES_POINTS (geom_curves.c): ribbons and disks face
+	   the camera. eye[t] is the eye in object space at shutter open and close
+	   (w = 1), or for an orthographic camera the direction towards it (w = 0),
+	   set when the scene is finished (reyes_ri_face_camera), as is mirror:
+	   the object-to-camera transform at shutter open turns space inside out. */
+	const struct reyes_curves *curves;    /* REYES_CURVES only */
+	float eye[2][4];
+	bool mirror;
 
 	uint32_t npoints;                     /* vertex positions ("P" count) */
 	const struct reyes_primvar *vars;     /* "P" is always present (vertex point) */
