@@ -1345,14 +1345,15 @@ bool reyes_tex_info(struct reyes_texsys *ts, const char *name, const char *query
 	if (!strcmp(query, "resolution")) {
 		if (type != SL_TYPE_FLOAT || arraylen != 2 || !out)
 			return false;
+		/* a deep map's image is taller than the map (deepshadow.h) */
 		out[0] = (float)l0->width;
-		out[1] = (float)l0->height;
+		out[1] = (float)(tx->is_deep ? tx->deep.height : l0->height);
 		return true;
 	}
 	if (!strcmp(query, "channels")) {
 		if (type != SL_TYPE_FLOAT || arraylen != 0 || !out)
 			return false;
-		out[0] = (float)tx->nch;
+		out[0] = tx->is_deep ? 1.0f : (float)tx->nch;
 		return true;
 	}
 	if (!strcmp(query, "type")) {

@@ -264,6 +264,16 @@ static void test_malformed(void)
 	const float good[6] = { 0.5f, 2, 1.0f, 1.0f, 0.5f, 1.0f };
 	write_bad("good.dsm", "relight-dsm 1 1 1 2", 1, 3, good);
 	CHECK_NEAR(texel_at("good.dsm", 0, 0, 2.0, NULL), 0.5, 1e-6);
+	/* textureinfo: a shadow map of the map's size, not of its image's */
+	static const float id[16] = { 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1 };
+	struct reyes_texsys *ts = reyes_texsys_create(tmpdir, id, NULL);
+	float res[2] = { 0, 0 };
+	const char *type = NULL;
+	CHECK(reyes_tex_info(ts, "good.dsm", "resolution", SL_TYPE_FLOAT, 2, res, NULL));
+	CHECK(res[0] == 1 && res[1] == 1);
+	CHECK(reyes_tex_info(ts, "good.dsm", "type", SL_TYPE_STRING, 0, NULL, &type));
+	CHECK(type && !strcmp(type, "shadow"));
+	reyes_texsys_destroy(ts);
 	write_bad("attr.dsm", "relight-dsm one", 1, 3, good);
 	expect_refused("attr.dsm", "attribute");
 	write_bad("version.dsm", "relight-dsm 7 1 1 2", 1, 3, good);
