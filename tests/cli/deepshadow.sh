@@ -105,6 +105,7 @@ if [ "$status" -ne 0 ] && grep -q "no GPU context" "$work/stderr"; then
 	exit 77
 fi
 expect_status 0
+expect_no_crash
 compare "preview (GPU)" gpu.exr
 run "GPU vs CPU preview" "$relight" diff --fail-rel 1e-4 cpu.exr gpu.exr
 expect_status 0
