@@ -33,8 +33,9 @@ static void usage(FILE *out)
 		"the final-frame reference of every preview. Each frame (FrameBegin..FrameEnd,\n"
 		"or WorldBegin..WorldEnd) is written to the displays it names: Display type\n"
 		"\"file\" as OpenEXR (PNG when the name ends in .png), \"openexr\", \"png\", and\n"
-		"depth maps \"zfile\" and \"shadow\". A \"framebuffer\" display is skipped with a\n"
-		"warning; any other type or extension (tiff, .jpg) is an error.\n"
+		"depth maps \"zfile\" and \"shadow\", and deep shadow maps \"deepshad\" (mode\n"
+		"\"deepopacity\"). A \"framebuffer\" display is skipped with a warning; any\n"
+		"other type or extension (tiff, .jpg) is an error.\n"
 		"\n"
 		"The whole scene is read and checked first: nothing is rendered or written when\n"
 		"it has errors that make a frame meaningless (syntax, unbalanced blocks, a\n"
@@ -194,7 +195,7 @@ static void plan_free(struct render_job *j)
 
 static bool is_depth(const struct reyes_display *d)
 {
-	return !strcmp(d->type, "zfile") || !strcmp(d->type, "shadow") || !strcmp(d->mode, "z");
+	return reyes_display_is_depth(d);
 }
 
 /* The extension of @name's last component, without the dot ("" when none). */
@@ -225,8 +226,8 @@ static bool output_kind(const char *name, enum out_kind *kind)
 }
 
 #define WRITTEN "relight writes Display types \"file\" (OpenEXR, or PNG for a name ending " \
-		"in .png), \"openexr\" and \"png\", depth maps \"zfile\" and \"shadow\", and skips " \
-		"\"framebuffer\""
+		"in .png), \"openexr\" and \"png\", depth maps \"zfile\", \"shadow\" and \"deepshad\", " \
+		"and skips \"framebuffer\""
 
 /* A display's format from its type and name; false (reported at @o->where) when unwritable. */
 static bool display_kind(struct render_job *j, struct out *o)

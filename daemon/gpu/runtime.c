@@ -101,6 +101,7 @@ struct light {
 	uint32_t not_casting;      /* objects that do not */
 	uint32_t cast_version, rendered_version;
 	bool follow;               /* the maps' cameras follow the light's from and to */
+	bool warned_deep;          /* said that a deep map is not rendered again */
 	float follow_key[6];       /* the from and to the maps were last rendered for */
 	/* per shadow site, while some object does not cast: the map rendered
 	 * from the shadow geometry without them, and its depths */
@@ -1103,6 +1104,15 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 			L->rmaps[i] = NULL;
 			if (!L->maps[i] || !s->shadow_geo)
 				continue;
+			if (gpu_shadow_map_is_deep(L->maps[i])) {
+				/* the shadow geometry has no opacity: keep the baked map */
+				if (!L->warned_deep)
+					fprintf(s->diag, "relight: warning: light '%s': its deep shadow "
+						"map '%s' is not rendered again on the GPU: the baked map "
+						"is used as it is\n", L->name, L->map_names[i]);
+				L->warned_deep = true;
+				continue;
+			}
 			uint32_t w, h;
 			float w2c[16], w2ndc[16];
 			gpu_shadow_map_size(L->maps[i], &w, &h);

@@ -28,6 +28,9 @@ void gpu_shadow_map_destroy(struct gpu_shadow_map *m);
 /** Bytes the map takes in GPU memory. */
 size_t gpu_shadow_map_bytes(const struct gpu_shadow_map *m);
 
+/** A deep shadow map (render/deepshadow.h): rendering it again from geometry is not done. */
+bool gpu_shadow_map_is_deep(const struct gpu_shadow_map *m);
+
 /** The map's size in texels. */
 void gpu_shadow_map_size(const struct gpu_shadow_map *m, uint32_t *width, uint32_t *height);
 

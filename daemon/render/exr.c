@@ -862,6 +862,10 @@ static exr_result_t read_pixels(exr_context_t ctx, bool all_levels, struct reyes
 	if (exr_get_attribute_by_name(ctx, 0, "fov", &a) == EXR_ERR_SUCCESS && a &&
 	    a->type == EXR_ATTR_FLOAT && isfinite(a->f) && a->f > 0.0f && a->f < 180.0f)
 		f->fov = a->f;
+	if (exr_get_attribute_by_name(ctx, 0, "deepshadow", &a) == EXR_ERR_SUCCESS && a &&
+	    a->type == EXR_ATTR_STRING && a->string && a->string->str)
+		snprintf(f->deepshadow, sizeof(f->deepshadow), "%.*s", (int)a->string->length,
+			 a->string->str);
 	if (exr_get_attribute_by_name(ctx, 0, "bias", &a) == EXR_ERR_SUCCESS && a &&
 	    a->type == EXR_ATTR_FLOAT && isfinite(a->f)) {
 		f->has_bias = true;

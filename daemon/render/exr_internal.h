@@ -46,6 +46,7 @@ struct reyes_exr_file {
 	float fov;                   /* a cube map's "fov" attribute, 90 when absent */
 	bool has_bias;               /* a float "bias" attribute (shadow maps) */
 	float bias;
+	char deepshadow[96];         /* the "deepshadow" attribute (deepshadow.h), "" when absent */
 };
 
 /**

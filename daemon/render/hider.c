@@ -1488,6 +1488,26 @@ static float pixel_depth(const struct reyes_hider *h, uint32_t x, uint32_t y)
 	return z < INFINITY ? z : NO_DEPTH;
 }
 
+uint32_t reyes_hider_sample_hits(const struct reyes_hider *h, uint32_t x, uint32_t y, uint32_t k,
+				 float *z, float *o, uint32_t cap)
+{
+	if (!h || !h->active || x < h->px0 || x >= h->px1 || y < h->py0 || y >= h->py1 ||
+	    k >= h->nps)
+		return 0;
+	uint32_t xs = h->o.xsamples;
+	size_t si = (size_t)(y * h->o.ysamples + k / xs - h->gy0) * h->sw +
+		    (x * xs + k % xs - h->gx0);
+	uint32_t n = 0;
+	for (uint32_t i = h->samp[si].head; i != NIL; i = h->hits[i].next, n++) {
+		if (n >= cap)
+			continue;
+		const struct hit *c = &h->hits[i];
+		z[n] = c->z;
+		o[n] = (c->o[0] + c->o[1] + c->o[2]) * (1.0f / 3.0f);
+	}
+	return n;
+}
+
 /* Per-sample scratch for resolving @n samples (the mode's own arrays). */
 static void grow_scratch(struct reyes_hider *h, size_t n)
 {

@@ -144,6 +144,18 @@ uint64_t reyes_hider_end_record(struct reyes_hider *h, const uint32_t **offsets,
 				const struct reyes_vis_entry **entries, float *alpha, float *z);
 
 /**
+ * Deep shadows: the hits of subpixel sample @k (row-major among the
+ * pixel's xsamples x ysamples) of pixel (x, y) of the current bucket, front
+ * to back, as depth and opacity (the mean of the three channels; matte hits
+ * too, as they hide what is behind). The first @cap go to @z and @o; returns
+ * how many the sample has (call again with more room when that is over
+ * @cap). Hits behind the depth where the sample became opaque are not kept.
+ * 0 outside the bucket's pixels. Call before reyes_hider_end.
+ */
+uint32_t reyes_hider_sample_hits(const struct reyes_hider *h, uint32_t x, uint32_t y, uint32_t k,
+				 float *z, float *o, uint32_t cap);
+
+/**
  * Bytes a bucket of @h takes per subpixel sample, sampled once by one
  * opaque grid: the sample, its filter weights and colour (or, recording,
  * its alpha and list of contributions) and one hit. More hits per sample

@@ -23,6 +23,7 @@
 #include "nurbs.h"
 #include "hider.h"
 #include "texture.h"
+#include "deepshadow.h"
 #include "lighthost.h"
 #include "png.h"
 #include "mathlib.h"
@@ -261,6 +262,7 @@ struct tctx {
 	float (*light_mats)[16];         /* scratch: their shader spaces */
 	uint64_t grids, points, samples;
 	float *bucket_rgba, *bucket_z, *bucket_aov;
+	struct reyes_deep_scratch deep;  /* deep shadow pixels' scratch */
 	bool failed;
 };
 
@@ -284,6 +286,9 @@ struct render {
 	float (*light_mats)[16];         /* per scene light: its shader space -> camera */
 	/* the image */
 	float *rgba, *z, *aov;
+	/* a deepshad display's: per pixel its visibility function, built to deep_error */
+	struct reyes_deep_pixel *deep;
+	float deep_error;
 	/* work sharing */
 	atomic_size_t next;
 	size_t *todo;
@@ -1422,8 +1427,17 @@ static void hide_bucket(struct tctx *t, uint32_t bx)
 			atomic_store(&r->failed, true);
 		return;
 	}
-	t->samples += reyes_hider_end(t->hider, t->bucket_rgba, t->bucket_z, t->bucket_aov);
 	uint32_t W = (uint32_t)r->cam.xres;
+	if (r->deep) {
+		const struct reyes_options *so = &r->scene->opts;
+		uint32_t ns = (so->xsamples ? so->xsamples : 1) * (so->ysamples ? so->ysamples : 1);
+		for (uint32_t y = y0; y < y1; y++)
+			for (uint32_t x = x0; x < x1; x++)
+				if (!reyes_deep_build_pixel(t->hider, ns, x, y, r->deep_error, &t->deep,
+							    &r->deep[(size_t)y * W + x]))
+					atomic_store(&r->failed, true);
+	}
+	t->samples += reyes_hider_end(t->hider, t->bucket_rgba, t->bucket_z, t->bucket_aov);
 	for (uint32_t y = y0; y < y1; y++) {
 		memcpy(r->rgba + ((size_t)y * W + x0) * 4, t->bucket_rgba + (size_t)(y - y0) * w * 4,
 		       sizeof(float) * 4 * w);
@@ -1520,9 +1534,13 @@ static bool write_display(struct render *r, const struct reyes_display *d)
 	uint32_t nowned = 0;
 	int src[64];           /* -1..-4: R G B A, -5: Z, >= 0: aov plane */
 	uint32_t nch = 0;
-	bool depth = !strcmp(d->type, "zfile") || !strcmp(d->type, "shadow") ||
-		     !strcmp(d->mode, "z");
+	bool depth = reyes_display_is_depth(d);
 	bool single = !strchr(d->mode, ',');
+	if (!strcmp(d->type, "deepshad")) {
+		float w2ndc[16];
+		sl_m44_mul(w2ndc, r->cam.w2c, r->cam.c2ndc);
+		return reyes_deep_write(d->name, W, H, r->deep, r->cam.w2c, w2ndc, r->diag);
+	}
 	if (depth) {
 		names[nch] = "Z";
 		src[nch++] = -5;
@@ -1645,7 +1663,7 @@ static bool collect_aovs(struct render *r)
 	const struct reyes_options *o = &r->scene->opts;
 	for (uint32_t i = 0; i < o->ndisplays; i++) {
 		const struct reyes_display *d = &o->displays[i];
-		if (!strcmp(d->type, "zfile") || !strcmp(d->type, "shadow"))
+		if (reyes_display_is_depth(d))
 			continue;
 		for (const char *m = d->mode; *m;) {
 			const char *e = strchr(m, ',');
@@ -1702,10 +1720,15 @@ bool reyes_scene_is_shadow_pass(const struct reyes_scene *scene)
 	const struct reyes_options *so = &scene->opts;
 	bool shadow_pass = so->ndisplays > 0;
 	for (uint32_t i = 0; i < so->ndisplays; i++)
-		if (strcmp(so->displays[i].type, "zfile") && strcmp(so->displays[i].type, "shadow") &&
-		    strcmp(so->displays[i].mode, "z"))
+		if (!reyes_display_is_depth(&so->displays[i]))
 			shadow_pass = false;
 	return shadow_pass;
+}
+
+bool reyes_display_is_depth(const struct reyes_display *d)
+{
+	return !strcmp(d->type, "zfile") || !strcmp(d->type, "shadow") ||
+	       !strcmp(d->type, "deepshad") || !strcmp(d->mode, "z");
 }
 
 /*
@@ -1887,6 +1910,16 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	if (r.z)
 		for (size_t i = 0; i < npix; i++)
 			r.z[i] = 1e30f;
+	r.deep_error = -1.0f;
+	for (uint32_t i = 0; i < so->ndisplays; i++)
+		if (!strcmp(so->displays[i].type, "deepshad") && !opts->bake &&
+		    (r.deep_error < 0.0f || so->displays[i].deep_error < r.deep_error))
+			r.deep_error = so->displays[i].deep_error;
+	if (ok && r.deep_error >= 0.0f && !(r.deep = calloc(npix, sizeof(*r.deep)))) {
+		loc_error(&r, so->format_loc, "out of memory for a %ux%u deep shadow map",
+			  so->xres, so->yres);
+		ok = false;
+	}
 	r.ctx = calloc(r.nthreads, sizeof(*r.ctx));
 	for (uint32_t i = 0; ok && i < r.nthreads; i++) {
 		struct tctx *t = &r.ctx[i];
@@ -1976,7 +2009,11 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 		free(t->bucket_rgba);
 		free(t->bucket_z);
 		free(t->bucket_aov);
+		reyes_deep_scratch_finish(&t->deep);
 	}
+	for (size_t i = 0; r.deep && i < npix; i++)
+		free(r.deep[i].zt);
+	free(r.deep);
 	free(r.ctx);
 	free(r.todo);
 	free(r.active);

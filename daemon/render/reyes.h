@@ -142,4 +142,7 @@ bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *o
  */
 bool reyes_scene_is_shadow_pass(const struct reyes_scene *scene);
 
+/** A display of depth (zfile, shadow, deepshad, or mode "z"): no colour, no AOVs. */
+bool reyes_display_is_depth(const struct reyes_display *d);
+
 #endif

@@ -34,6 +34,7 @@
 #include "sl.h"
 #include "strbuf.h"
 #include "texture.h"
+#include "deepshadow.h"
 
 #include <ctype.h>
 #include <dirent.h>
@@ -569,9 +570,15 @@ static void req_display(struct ri *ri, const struct rib_request *r)
 	if (!*name)
 		FAIL(ri, r->loc, "Display: empty file name");
 	bool depth = strcmp(type, "zfile") == 0 || strcmp(type, "shadow") == 0;
+	/* prman's deep shadow display: the visibility function of each pixel */
+	bool deep = strcmp(type, "deepshad") == 0;
+	if (deep && strcmp(mode, "deepopacity") != 0)
+		FAIL(ri, r->loc, "Display \"deepshad\": mode '%s' is not supported "
+		     "(\"deepopacity\" is)", mode);
 	static const char *const modes[] = {"rgba", "rgb", "a", "z", "rgbaz"};
-	const char *m = NULL;
-	for (size_t i = 0; i < sizeof(modes) / sizeof(modes[0]); i++)
+	const char *m = deep ? "deepopacity" : NULL;
+	float deep_error = REYES_DEEP_DEFAULT_ERROR;
+	for (size_t i = 0; !m && i < sizeof(modes) / sizeof(modes[0]); i++)
 		if (strcmp(mode, modes[i]) == 0)
 			m = modes[i];
 	if (!m) {
@@ -616,7 +623,7 @@ static void req_display(struct ri *ri, const struct rib_request *r)
 	}
 	if (depth)
 		m = "z";
-	bool half = !depth && strcmp(m, "z") != 0;
+	bool half = !depth && !deep && strcmp(m, "z") != 0;
 	for (uint32_t i = 0; i < r->nparams; i++) {
 		const struct rib_param *p = &r->params[i];
 		struct decl d;
@@ -632,6 +639,12 @@ static void req_display(struct ri *ri, const struct rib_request *r)
 			if (zero || (!reyes_ri_is_numbers(v) && v->n == 1 &&
 				     strcmp(v->strs[0], "float") == 0))
 				half = false;
+		} else if (deep && strcmp(pname, "deepshadowerror") == 0) {
+			if (!reyes_ri_is_numbers(v) || v->n != 1 || !(v->nums[0] >= 0.0 &&
+								      v->nums[0] < 1.0))
+				FAIL(ri, p->loc, "Display: deepshadowerror must be one number in "
+				     "[0, 1)");
+			deep_error = (float)v->nums[0];
 		} else if (strcmp(pname, "type") == 0 && !reyes_ri_is_numbers(v) && v->n == 1) {
 			if (strcmp(v->strs[0], "float") == 0)
 				half = false;
@@ -659,6 +672,7 @@ static void req_display(struct ri *ri, const struct rib_request *r)
 		.half = half,
 		.file = loc.file,
 		.line = loc.line,
+		.deep_error = deep_error,
 	};
 	o->displays = ds;
 	o->ndisplays = keep + 1;
@@ -2280,7 +2294,7 @@ static void build_scene(struct ri *ri, struct reyes_scene *sc)
 		uint32_t k = nd;
 		for (uint32_t i = nd; i-- > 0;)
 			if (strcmp(ds[i].type, "zfile") != 0 && strcmp(ds[i].type, "shadow") != 0 &&
-			    strcmp(ds[i].mode, "z") != 0)
+			    strcmp(ds[i].type, "deepshad") != 0 && strcmp(ds[i].mode, "z") != 0)
 				k = i;
 		if (k < nd)
 			ds[k].name = rl_arena_strdup(a, ri->opts->output_override);

@@ -37,6 +37,7 @@ struct reyes_display {
 	bool png;               /* write an 8-bit sRGB PNG instead of OpenEXR (set by the caller) */
 	const char *file;       /* where it was requested */
 	uint32_t line;
+	float deep_error;       /* "deepshad": the functions' error bound (deepshadow.h) */
 };
 
 struct reyes_options {

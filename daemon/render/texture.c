@@ -27,6 +27,7 @@
  *    worldToCamera to the light's camera space, where "Z" is the depth z.
  *    Map depths <= 0 (or not finite) are empty: nothing there casts shadow.
  */
+#include "deepshadow.h"
 #include "exr_internal.h"
 #include "lighthost.h"
 #include "mathlib.h"
@@ -373,9 +374,31 @@ static int depth_channel(const struct reyes_image *im)
 	return im->nchannels == 1 ? 0 : -1;
 }
 
+/* MakeShadow of a deep shadow map: checked, and written again as it is. */
+static bool make_deep_shadow(const char *in, const char *out, struct reyes_exr_file *f,
+			     FILE *diag)
+{
+	struct reyes_deep_map m;
+	if (!reyes_deep_from_image(&f->levels[0], f->deepshadow, in, &m, diag))
+		return false;
+	reyes_deep_map_finish(&m);
+	const char *sa[2] = { "deepshadow", f->deepshadow };
+	struct reyes_exr_write_opts o = { .strattrs = sa, .nstrattrs = 1 };
+	return reyes_exr_write(out, &f->levels[0], 1, &o, diag);
+}
+
 bool reyes_make_shadow(const char *in, const char *out, FILE *diag)
 {
 	FILE *d = diag ? diag : stderr;
+	struct reyes_exr_file df;
+	if (!reyes_exr_read(in, false, &df, diag))
+		return false;
+	if (df.deepshadow[0]) {
+		bool ok = make_deep_shadow(in, out, &df, diag);
+		reyes_exr_file_finish(&df);
+		return ok;
+	}
+	reyes_exr_file_finish(&df);
 	struct reyes_image src;
 	if (!reyes_image_read_exr(in, &src, diag))
 		return false;
@@ -420,6 +443,8 @@ struct tex {
 	int zchan;                   /* depth channel, -1 if none */
 	bool has_matrices;
 	float world_to_camera[16], world_to_ndc[16];
+	bool is_deep;                /* a deep shadow map: shadow() reads deep */
+	struct reyes_deep_map deep;
 };
 
 #define NBUCKETS 256
@@ -464,6 +489,7 @@ void reyes_texsys_destroy(struct reyes_texsys *ts)
 		while (t) {
 			struct tex *next = t->next;
 			reyes_exr_file_finish(&t->f);
+			reyes_deep_map_finish(&t->deep);
 			free(t->name);
 			free(t);
 			t = next;
@@ -592,10 +618,18 @@ static void load(const struct reyes_texsys *ts, struct tex *t)
 		return;
 	struct reyes_exr_file *f = &t->f;
 	bool ok = reyes_exr_read(path, true, f, ts->diag);
+	/* A deep shadow map: its functions, checked; the image stays as read. */
+	if (ok && f->deepshadow[0]) {
+		ok = reyes_deep_from_image(&f->levels[0], f->deepshadow, path, &t->deep,
+					   ts->diag);
+		if (!ok)
+			reyes_exr_file_finish(f);
+	}
 	free(path);
 	if (!ok)
 		return;
 	if (!reorder_channels(f)) {
+		reyes_deep_map_finish(&t->deep);
 		reyes_exr_file_finish(f);
 		return;
 	}
@@ -605,6 +639,11 @@ static void load(const struct reyes_texsys *ts, struct tex *t)
 	t->has_matrices = im->has_matrices;
 	memcpy(t->world_to_camera, im->world_to_camera, sizeof(t->world_to_camera));
 	memcpy(t->world_to_ndc, im->world_to_ndc, sizeof(t->world_to_ndc));
+	if (t->deep.offsets) {
+		t->is_deep = true;
+		t->ok = true;
+		return;
+	}
 	/* Wrap modes "swrap,twrap" (one word: both); black when absent, as txmake does. */
 	t->swrap = t->twrap = WRAP_BLACK;
 	const char *wm = f->wrapmodes, *comma = strchr(wm, ',');
@@ -1117,6 +1156,10 @@ bool reyes_tex_shadow(struct reyes_texsys *ts, const struct sl_tex_lookup *q)
 		return false;
 	const struct reyes_image *map = &tx->f.levels[0];
 	uint32_t W = map->width, H = map->height, nch = map->nchannels, zc = (uint32_t)tx->zchan;
+	if (tx->is_deep) {
+		W = tx->deep.width;
+		H = tx->deep.height;
+	}
 	float bias = q->bias >= 0.0f && isfinite(q->bias) ? q->bias :
 		     tx->f.has_bias ? tx->f.bias : DEFAULT_SHADOW_BIAS;
 	double sw = size_opt(q->swidth), tw = size_opt(q->twidth);
@@ -1166,7 +1209,7 @@ bool reyes_tex_shadow(struct reyes_texsys *ts, const struct sl_tex_lookup *q)
 			else
 				seed = sl_hash_mix(sl_hash_mix(float_bits((float)sc)) ^
 						   sl_hash_mix(float_bits((float)tc) + 0x9e3779b9u));
-			int shadowed = 0;
+			double shadowed = 0.0;
 			for (int v = 0; v < nu; v++) {
 				for (int u = 0; u < nu; u++) {
 					double ju = 0.5, jv = 0.5;
@@ -1183,12 +1226,18 @@ bool reyes_tex_shadow(struct reyes_texsys *ts, const struct sl_tex_lookup *q)
 					uint32_t x = (uint32_t)(s * W), y = (uint32_t)(t * H);
 					x = x < W ? x : W - 1;
 					y = y < H ? y : H - 1;
+					if (tx->is_deep) {
+						/* Lokovic & Veach: the light not let through */
+						shadowed += 1.0 - reyes_deep_eval(&tx->deep, x, y,
+										  z - bias);
+						continue;
+					}
 					float zm = map->data[((size_t)y * W + x) * nch + zc];
 					if (zm > 0.0f && z - bias > zm)
 						shadowed++;
 				}
 			}
-			frac = (double)shadowed / (nu * nu);
+			frac = shadowed / (nu * nu);
 		}
 		for (int c = 0; c < q->nchannels; c++)
 			q->out[(size_t)c * q->stride + i] = (float)frac;
@@ -1210,6 +1259,14 @@ bool reyes_tex_shadow_map(struct reyes_texsys *ts, const char *name,
 	out->height = map->height;
 	out->depth = map->data + tx->zchan;
 	out->stride = map->nchannels;
+	if (tx->is_deep) {
+		out->width = tx->deep.width;
+		out->height = tx->deep.height;
+		out->depth = NULL;
+		out->stride = 0;
+		out->deep_offsets = tx->deep.offsets;
+		out->deep_nodes = tx->deep.zt;
+	}
 	memcpy(out->world_to_camera, tx->world_to_camera, sizeof(out->world_to_camera));
 	memcpy(out->world_to_ndc, tx->world_to_ndc, sizeof(out->world_to_ndc));
 	out->bias = tx->f.has_bias ? tx->f.bias : DEFAULT_SHADOW_BIAS;
@@ -1288,20 +1345,21 @@ bool reyes_tex_info(struct reyes_texsys *ts, const char *name, const char *query
 	if (!strcmp(query, "resolution")) {
 		if (type != SL_TYPE_FLOAT || arraylen != 2 || !out)
 			return false;
+		/* a deep map's image is taller than the map (deepshadow.h) */
 		out[0] = (float)l0->width;
-		out[1] = (float)l0->height;
+		out[1] = (float)(tx->is_deep ? tx->deep.height : l0->height);
 		return true;
 	}
 	if (!strcmp(query, "channels")) {
 		if (type != SL_TYPE_FLOAT || arraylen != 0 || !out)
 			return false;
-		out[0] = (float)tx->nch;
+		out[0] = tx->is_deep ? 1.0f : (float)tx->nch;
 		return true;
 	}
 	if (!strcmp(query, "type")) {
 		if (type != SL_TYPE_STRING || arraylen != 0 || !sout)
 			return false;
-		bool depth_map = tx->has_matrices && tx->nch == 1 && tx->zchan == 0;
+		bool depth_map = tx->is_deep || (tx->has_matrices && tx->nch == 1 && tx->zchan == 0);
 		sout[0] = depth_map ? "shadow" :
 			  tx->f.latlong || tx->f.cube ? "environment" : "texture";
 		return true;

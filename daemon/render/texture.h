@@ -113,9 +113,13 @@ uint64_t reyes_tex_unread_maps(void);
 /** A shadow map as reyes_tex_shadow() reads it (see reyes_tex_shadow_map). */
 struct reyes_shadow_map_info {
 	uint32_t width, height;
-	/* Texel (x, y)'s depth at depth[(y * width + x) * stride]; valid while the texsys lives. */
+	/* Texel (x, y)'s depth at depth[(y * width + x) * stride]; valid while the texsys lives.
+	 * NULL for a deep shadow map (deepshadow.h), whose texel p has the nodes
+	 * [deep_offsets[p], deep_offsets[p + 1]) of deep_nodes, (z, T) pairs. */
 	const float *depth;
 	uint32_t stride;
+	const uint32_t *deep_offsets;
+	const float *deep_nodes;
 	float world_to_camera[16];      /* row-vector convention, as struct reyes_image */
 	float world_to_ndc[16];
 	float bias;                     /* the map's own bias, else the default */

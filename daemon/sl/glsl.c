@@ -2063,6 +2063,7 @@ int sl_glsl_shadow_site(struct glsl_gen *g, const struct sl_insn *in)
 	rl_strbuf_printf(u, "uniform mat4 u_shadow%u_to_camera;\n", k);
 	rl_strbuf_printf(u, "uniform mat4 u_shadow%u_to_ndc;\n", k);
 	rl_strbuf_printf(u, "uniform float u_shadow%u_bias;\n", k);
+	rl_strbuf_printf(u, "uniform int u_shadow%u_deep;\n", k);
 	return (int)k;
 }
 

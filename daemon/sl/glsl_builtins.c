@@ -623,7 +623,27 @@ static const char shadow_glsl[] =
 	"}\n"
 	"double rl_clamp_region(double d) { return d < 1e6LF ? d : 1e6LF; }\n"
 	"float rl_fo0(float v) { return isnan(v) || isinf(v) ? 0.0 : v; }\n"
-	"float rl_shadow(samplerBuffer zmap, ivec2 size, mat4 tow, mat4 tocam, mat4 tondc,\n"
+	/* render/deepshadow.c reyes_deep_eval: offsets, then (z, T) nodes */
+	"double rl_deep_eval(samplerBuffer m, ivec2 size, int x, int y, double z) {\n"
+	"\tint p = y * size.x + x, base = size.x * size.y + 1;\n"
+	"\tint lo = int(texelFetch(m, p).x), hi = int(texelFetch(m, p + 1).x);\n"
+	"\tint a = lo, b = hi;\n"
+	"\twhile (a < b) {\n"
+	"\t\tint mid = a + (b - a) / 2;\n"
+	"\t\tif (double(texelFetch(m, base + 2 * mid).x) > z) b = mid;\n"
+	"\t\telse a = mid + 1;\n"
+	"\t}\n"
+	"\tif (a == lo) return 1.0LF;\n"
+	"\tif (a == hi) return double(texelFetch(m, base + 2 * hi - 1).x);\n"
+	"\tdouble z0 = double(texelFetch(m, base + 2 * a - 2).x);\n"
+	"\tdouble t0 = double(texelFetch(m, base + 2 * a - 1).x);\n"
+	"\tdouble z1 = double(texelFetch(m, base + 2 * a).x);\n"
+	"\tdouble t1 = double(texelFetch(m, base + 2 * a + 1).x);\n"
+	"\tprecise double r = t0 + (t1 - t0) * ((z - z0) / (z1 - z0));\n"
+	"\treturn r;\n"
+	"}\n"
+	"float rl_shadow(samplerBuffer zmap, ivec2 size, bool deep, mat4 tow, mat4 tocam,\n"
+	"\t\tmat4 tondc,\n"
 	"\t\tfloat mapbias, vec3 p0, vec3 p1, vec3 p2, vec3 p3, bool hasc, vec3 center,\n"
 	"\t\tfloat swidth, float twidth, float sblur, float tblur, float samples, float bias,\n"
 	"\t\tfloat fill) {\n"
@@ -672,7 +692,7 @@ static const char shadow_glsl[] =
 	"\t\tseed = rl_hmix(rl_hmix(floatBitsToUint(float(sc))) ^\n"
 	"\t\t\trl_hmix(floatBitsToUint(float(tc)) + 0x9e3779b9u));\n"
 	"\tprecise double zb = z - double(b);\n"
-	"\tint shadowed = 0;\n"
+	"\tprecise double shadowed = 0.0LF;\n"
 	"\tfor (int v = 0; v < nu; v++) {\n"
 	"\t\tfor (int u = 0; u < nu; u++) {\n"
 	"\t\t\tdouble ju = 0.5LF, jv = 0.5LF;\n"
@@ -687,11 +707,15 @@ static const char shadow_glsl[] =
 	"\t\t\tif (!(s >= 0.0LF && s < 1.0LF && t >= 0.0LF && t < 1.0LF)) continue;\n"
 	"\t\t\tprecise double xs = s * double(size.x), ys = t * double(size.y);\n"
 	"\t\t\tint x = min(int(xs), size.x - 1), y = min(int(ys), size.y - 1);\n"
+	"\t\t\tif (deep) {\n"
+	"\t\t\t\tshadowed += 1.0LF - rl_deep_eval(zmap, size, x, y, zb);\n"
+	"\t\t\t\tcontinue;\n"
+	"\t\t\t}\n"
 	"\t\t\tfloat zm = texelFetch(zmap, y * size.x + x).x;\n"
-	"\t\t\tif (zm > 0.0 && zb > double(zm)) shadowed++;\n"
+	"\t\t\tif (zm > 0.0 && zb > double(zm)) shadowed += 1.0LF;\n"
 	"\t\t}\n"
 	"\t}\n"
-	"\treturn float(double(shadowed) / double(nu * nu));\n"
+	"\treturn float(shadowed / double(nu * nu));\n"
 	"}\n";
 
 struct helper {
@@ -1830,10 +1854,11 @@ static void call_shadow(struct glsl_gen *g, const struct sl_insn *in)
 		return;
 	sl_glsl_need(g, GH_SHADOW);
 	const char *e = SL_GLSL_FMT(g, "rl_shadow(u_shadow%d, ivec2(u_shadow%d_size[0], "
-				    "u_shadow%d_size[1]), u_to_world, u_shadow%d_to_camera, "
-				    "u_shadow%d_to_ndc, u_shadow%d_bias, %s, %s, %s, %s, %s, %s, %s, %s, "
-				    "%s, %s, %s, %s, %s)", site, site, site, site, site, site, c[0], c[1],
-				    c[2], c[3], hasc, center, sw, tw, sb, tb, samples, bias, fill);
+				    "u_shadow%d_size[1]), u_shadow%d_deep != 0, u_to_world, "
+				    "u_shadow%d_to_camera, u_shadow%d_to_ndc, u_shadow%d_bias, %s, %s, %s, "
+				    "%s, %s, %s, %s, %s, %s, %s, %s, %s, %s)", site, site, site, site, site,
+				    site, site, c[0], c[1], c[2], c[3], hasc, center, sw, tw, sb, tb,
+				    samples, bias, fill);
 	set_dst(g, in, ncomp(g, in->dst) == 3 ? SL_GLSL_FMT(g, "vec3(%s)", e) : e);
 }
 

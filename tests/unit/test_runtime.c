@@ -555,6 +555,68 @@ static void test_shadow_look(void)
 	gpu_shot_close(sh);
 }
 
+/*
+ * A deep shadow map on the GPU (render/deepshadow.h): the shadowed key light
+ * with its pass written as a deep map and a semi-transparent sphere, against
+ * the CPU resolver within REL_TOL; with its maps following a moved light,
+ * the deep map is kept as baked (the shadow geometry has no opacity), which
+ * is the image of the moved light with follow off, and the preview says so
+ * once.
+ */
+static void test_deep_follow(void)
+{
+	char text[4096], text2[4096], deep[512], err[256];
+	replace_all(shadow_scene, "\"key.z\" \"zfile\" \"z\"", "\"key.z\" \"deepshad\" \"deepopacity\"",
+		    text, sizeof(text));
+	replace_all(text, "AttributeBegin Translate 0 0.5 1 Sphere", "AttributeBegin Opacity "
+		    "[0.4 0.4 0.4] Translate 0 0.5 1 Sphere", text2, sizeof(text2));
+	replace_all(text2, "key.", "dk.", text, sizeof(text));
+	CHECK(strstr(text, "deepshad") && strstr(text, "Opacity"));
+	CHECK(bake("deep", text, "SHADOWNAME", "\"shadowname\" \"dk.shd\" \"samples\" 16", "",
+		   deep, sizeof(deep)));
+	char *buf = NULL;
+	size_t len = 0;
+	FILE *mem = open_memstream(&buf, &len);
+	struct gpu_shot_opts o = { .texture_path = workdir, .diag = mem };
+	struct gpu_shot *sh = gpu_shot_open(ctx, deep, &o);
+	CHECK(sh != NULL);
+	if (!sh) {
+		fclose(mem);
+		free(buf);
+		return;
+	}
+	size_t n = (size_t)W * H * 4;
+	float *cpu = image_of(deep, false, NULL), *g = image_of(deep, true, sh);
+	double r = max_rel(g, cpu, n, NULL);
+	printf("deep shadow map: GPU against the CPU resolver, largest relative %.3g "
+	       "(tolerance %g)\n", r, REL_TOL);
+	CHECK(r <= REL_TOL);
+	free(g);
+	const float mfrom[3] = { 0.6f, 4, 1.2f }, mto[3] = { 0.6f, 0, 1.2f };
+	CHECK(gpu_shot_set(sh, "2", "from", mfrom, 3, err, sizeof(err)));
+	CHECK(gpu_shot_set(sh, "2", "to", mto, 3, err, sizeof(err)));
+	float *kept = image_of(deep, true, sh);
+	CHECK(gpu_shot_shadow_follow(sh, "2", true, err, sizeof(err)));
+	g = image_of(deep, true, sh);
+	CHECK(max_rel(g, kept, n, NULL) <= REL_TOL);
+	free(g);
+	const float mfrom2[3] = { 0.5f, 4, 1.3f };
+	CHECK(gpu_shot_set(sh, "2", "from", mfrom2, 3, err, sizeof(err)));
+	g = image_of(deep, true, sh);
+	free(g);
+	fflush(mem);
+	const char *warn = "its deep shadow map 'dk.shd' is not rendered again on the GPU";
+	const char *first = buf ? strstr(buf, warn) : NULL;
+	CHECK(first && !strstr(first + 1, warn));
+	if (!first)
+		fprintf(stderr, "the deep shot said: %s\n", buf ? buf : "");
+	gpu_shot_close(sh);
+	fclose(mem);
+	free(buf);
+	free(kept);
+	free(cpu);
+}
+
 /* Editable surface parameters, and adding and removing lights, against
  * the CPU resolver of shots baked with the RIB edited the same way. */
 static void test_surface_and_lights(void)
@@ -1009,6 +1071,7 @@ int main(int argc, char **argv)
 			gpu_shot_close(shot);
 			shot = NULL;
 			RUN(test_shadow_look);
+			RUN(test_deep_follow);
 			RUN(test_nonlinear);
 			RUN(test_texture_maps);
 			RUN(test_surface_and_lights);
