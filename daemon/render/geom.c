@@ -102,8 +102,7 @@ bool reyes_prim_deforms(const struct reyes_prim *p)
 	return P && P->values1;
 }
 
-/* Floats per item of a primitive variable (0 for strings). */
-static size_t var_stride(const struct reyes_primvar *v)
+size_t reyes_primvar_stride(const struct reyes_primvar *v)
 {
 	return (size_t)sl_type_ncomp(v->type) * (v->arraylen ? v->arraylen : 1);
 }
@@ -112,7 +111,7 @@ static size_t var_stride(const struct reyes_primvar *v)
 static const struct reyes_primvar *points_var(const struct reyes_prim *p, uint64_t need)
 {
 	const struct reyes_primvar *v = reyes_prim_var(p, "P");
-	if (!v || !v->values || var_stride(v) != 3 || v->count < need)
+	if (!v || !v->values || reyes_primvar_stride(v) != 3 || v->count < need)
 		return NULL;
 	return v;
 }
@@ -1664,7 +1663,7 @@ struct dice {
 static bool interp_var(const struct piece *pc, const struct dice *d,
 		       const struct reyes_primvar *var, float *dst)
 {
-	size_t stride = var_stride(var);
+	size_t stride = reyes_primvar_stride(var);
 	const float *vals = var->values;
 	if (!stride || !vals)
 		return false;
@@ -1765,19 +1764,101 @@ static bool is_special_var(const char *name)
 	return false;
 }
 
-/* Interpolate the named variable if it has @stride floats per item; NULL otherwise. */
-static float *named_var(const struct piece *pc, const struct dice *d, const struct reyes_prim *p,
-			const char *name, size_t stride, bool *failed)
+/* Variable @name of @p through @fill, if it has @stride floats per item; NULL otherwise. */
+static float *fill_named(const struct reyes_prim *p, uint32_t n, const char *name, size_t stride,
+			 reyes_var_fill fill, const void *ctx, bool *failed)
 {
 	const struct reyes_primvar *v = reyes_prim_var(p, name);
-	if (!v || var_stride(v) != stride)
+	if (!v || reyes_primvar_stride(v) != stride)
 		return NULL;
-	float *dst = alloc_floats(stride * d->n, failed);
-	if (dst && !interp_var(pc, d, v, dst)) {
+	float *dst = alloc_floats(stride * n, failed);
+	if (dst && !fill(ctx, v, dst)) {
 		free(dst);
 		dst = NULL;
 	}
 	return dst;
+}
+
+/* s and t from "st" where they are not given on their own. */
+static void split_st(struct reyes_grid *g, const struct reyes_prim *p, reyes_var_fill fill,
+		     const void *ctx, bool *failed)
+{
+	uint32_t n = g->n;
+	float *st = fill_named(p, n, "st", 2, fill, ctx, failed);
+	if (!st)
+		return;
+	if (!g->s) {
+		g->s = alloc_floats(n, failed);
+		if (g->s)
+			memcpy(g->s, st, n * sizeof(float));
+	}
+	if (!g->t) {
+		g->t = alloc_floats(n, failed);
+		if (g->t)
+			memcpy(g->t, st + n, n * sizeof(float));
+	}
+	free(st);
+}
+
+bool reyes_grid_fill_vars(struct reyes_grid *g, const struct reyes_prim *p, bool with_N,
+			  reyes_var_fill fill, const void *ctx)
+{
+	bool failed = false;
+	uint32_t n = g->n;
+	if (with_N)
+		g->N = fill_named(p, n, "N", 3, fill, ctx, &failed);
+	for (uint32_t k = 0; g->N && k < n; k++) {
+		float a[3] = { g->N[k], g->N[n + k], g->N[2 * n + k] }, r[3];
+		sl_v3_normalize(r, a);
+		g->N[k] = r[0], g->N[n + k] = r[1], g->N[2 * n + k] = r[2];
+	}
+	g->Cs = fill_named(p, n, "Cs", 3, fill, ctx, &failed);
+	g->Os = fill_named(p, n, "Os", 3, fill, ctx, &failed);
+	g->s = fill_named(p, n, "s", 1, fill, ctx, &failed);
+	g->t = fill_named(p, n, "t", 1, fill, ctx, &failed);
+	if (!g->s || !g->t)
+		split_st(g, p, fill, ctx, &failed);
+
+	uint32_t nuser = 0;
+	for (uint32_t i = 0; i < p->nvars; i++)
+		if (p->vars[i].name && !is_special_var(p->vars[i].name) &&
+		    reyes_primvar_stride(&p->vars[i]))
+			nuser++;
+	if (!nuser || failed)
+		return !failed;
+	g->vars = calloc(nuser, sizeof(*g->vars));
+	if (!g->vars)
+		return false;
+	for (uint32_t i = 0; i < p->nvars; i++) {
+		const struct reyes_primvar *v = &p->vars[i];
+		if (!v->name || is_special_var(v->name) || !reyes_primvar_stride(v))
+			continue;
+		float *dst = alloc_floats(reyes_primvar_stride(v) * n, &failed);
+		if (!dst)
+			return false;
+		if (!fill(ctx, v, dst)) {
+			free(dst);
+			continue;
+		}
+		struct reyes_grid_var *gv = &g->vars[g->nvars++];
+		gv->name = v->name;
+		gv->type = v->type;
+		gv->arraylen = v->arraylen;
+		gv->data = dst;
+	}
+	return true;
+}
+
+/* A piece's interpolation of one variable, for reyes_grid_fill_vars. */
+struct piece_fill {
+	const struct piece *pc;
+	const struct dice *d;
+};
+
+static bool piece_fill(const void *ctx, const struct reyes_primvar *v, float *dst)
+{
+	const struct piece_fill *f = ctx;
+	return interp_var(f->pc, f->d, v, dst);
 }
 
 bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
@@ -1925,59 +2006,9 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 			g->Ng[k] = -g->Ng[k];
 
 	/* Primitive variables. */
-	g->N = named_var(&pc, &d, p, "N", 3, &failed);
-	if (g->N)
-		for (uint32_t k = 0; k < n; k++) {
-			float a[3] = { g->N[k], g->N[n + k], g->N[2 * n + k] }, r[3];
-			sl_v3_normalize(r, a);
-			g->N[k] = r[0], g->N[n + k] = r[1], g->N[2 * n + k] = r[2];
-		}
-	g->Cs = named_var(&pc, &d, p, "Cs", 3, &failed);
-	g->Os = named_var(&pc, &d, p, "Os", 3, &failed);
-	g->s = named_var(&pc, &d, p, "s", 1, &failed);
-	g->t = named_var(&pc, &d, p, "t", 1, &failed);
-	if (!g->s || !g->t) {
-		float *st = named_var(&pc, &d, p, "st", 2, &failed);
-		if (st) {
-			if (!g->s) {
-				g->s = alloc_floats(n, &failed);
-				if (g->s)
-					memcpy(g->s, st, n * sizeof(float));
-			}
-			if (!g->t) {
-				g->t = alloc_floats(n, &failed);
-				if (g->t)
-					memcpy(g->t, st + n, n * sizeof(float));
-			}
-			free(st);
-		}
-	}
-	uint32_t nuser = 0;
-	for (uint32_t i = 0; i < p->nvars; i++)
-		if (p->vars[i].name && !is_special_var(p->vars[i].name) && var_stride(&p->vars[i]))
-			nuser++;
-	if (nuser) {
-		g->vars = calloc(nuser, sizeof(*g->vars));
-		if (!g->vars)
-			failed = true;
-		for (uint32_t i = 0; i < p->nvars && g->vars; i++) {
-			const struct reyes_primvar *v = &p->vars[i];
-			if (!v->name || is_special_var(v->name) || !var_stride(v))
-				continue;
-			float *dst = alloc_floats(var_stride(v) * n, &failed);
-			if (!dst)
-				break;
-			if (!interp_var(&pc, &d, v, dst)) {
-				free(dst);
-				continue;
-			}
-			struct reyes_grid_var *gv = &g->vars[g->nvars++];
-			gv->name = v->name;
-			gv->type = v->type;
-			gv->arraylen = v->arraylen;
-			gv->data = dst;
-		}
-	}
+	struct piece_fill pf = { &pc, &d };
+	if (!reyes_grid_fill_vars(g, p, true, piece_fill, &pf))
+		failed = true;
 	if (failed)
 		goto fail;
 	free(d.s);

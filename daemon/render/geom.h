@@ -79,6 +79,28 @@ struct reyes_grid {
 bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 		      struct reyes_grid *g);
 
+/* ---- for the primitives diced in files of their own (geom_*.c) ---- */
+
+/** Floats per item of a primitive variable (0 for strings). */
+size_t reyes_primvar_stride(const struct reyes_primvar *v);
+
+/**
+ * A primitive kind's interpolation of variable @v over a grid's points into
+ * @dst (planar, reyes_primvar_stride(v) planes of the grid's n points).
+ * False when @v does not fit the primitive: it is then left out of the grid.
+ */
+typedef bool (*reyes_var_fill)(const void *ctx, const struct reyes_primvar *v, float *dst);
+
+/**
+ * The primitive variables of @p on grid @g (g->n points), each through
+ * @fill: "N" when @with_N (normalised), "Cs", "Os", "s" and "t" (from "st"
+ * where not given alone), and every other variable by name in g->vars,
+ * for shader parameters. False when memory ran out (what was filled
+ * stays in @g for reyes_grid_finish).
+ */
+bool reyes_grid_fill_vars(struct reyes_grid *g, const struct reyes_prim *p, bool with_N,
+			  reyes_var_fill fill, const void *ctx);
+
 /** Free a grid's buffers. Accepts a zeroed grid. */
 void reyes_grid_finish(struct reyes_grid *g);
 

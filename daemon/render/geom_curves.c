@@ -78,11 +78,6 @@ static void perp3(double r[3], const double a[3])
 		r[0] = 1.0, r[1] = r[2] = 0.0;
 }
 
-static size_t stride_of(const struct reyes_primvar *v)
-{
-	return (size_t)sl_type_ncomp(v->type) * (v->arraylen ? v->arraylen : 1);
-}
-
 /* ---- pieces ---- */
 
 /* What bounding and dicing need of one piece. */
@@ -102,7 +97,7 @@ struct cpiece {
 static const struct reyes_primvar *points_of(const struct reyes_prim *p)
 {
 	const struct reyes_primvar *P = reyes_prim_var(p, "P");
-	if (!P || !P->values || stride_of(P) != 3 || P->cls != REYES_VERTEX)
+	if (!P || !P->values || reyes_primvar_stride(P) != 3 || P->cls != REYES_VERTEX)
 		return NULL;
 	return P;
 }
@@ -214,7 +209,7 @@ static bool value_at(const struct cpiece *c, const struct reyes_primvar *v, cons
 	uint32_t item[4];
 	double w[4], dw[4];
 	uint32_t n = weights(c, v->cls, t, item, w, dw);
-	size_t stride = stride_of(v);
+	size_t stride = reyes_primvar_stride(v);
 	*x = 0.0;
 	if (dx)
 		*dx = 0.0;
@@ -233,9 +228,9 @@ static bool value_at(const struct cpiece *c, const struct reyes_primvar *v, cons
 static const struct reyes_primvar *width_var(const struct reyes_prim *p)
 {
 	const struct reyes_primvar *v = reyes_prim_var(p, "width");
-	if (!v || stride_of(v) != 1 || !v->values)
+	if (!v || reyes_primvar_stride(v) != 1 || !v->values)
 		v = reyes_prim_var(p, "constantwidth");
-	if (!v || stride_of(v) != 1 || !v->values)
+	if (!v || reyes_primvar_stride(v) != 1 || !v->values)
 		return NULL;
 	return v;
 }
@@ -292,7 +287,7 @@ static void facing(const struct cpiece *c, const struct reyes_primvar *N, int ti
 static const struct reyes_primvar *normals_of(const struct cpiece *c)
 {
 	const struct reyes_primvar *N = c->point ? NULL : reyes_prim_var(c->p, "N");
-	return N && stride_of(N) == 3 && N->values ? N : NULL;
+	return N && reyes_primvar_stride(N) == 3 && N->values ? N : NULL;
 }
 
 bool reyes_curves_deform(const struct reyes_prim *p)
@@ -358,7 +353,7 @@ static bool span_hull(const struct cpiece *c, const struct reyes_primvar *v, con
 	for (int k = 0; k < 4; k++) {
 		if (c->vtx[k] >= v->count)
 			return false;
-		g[k] = vals[(size_t)c->vtx[k] * stride_of(v) + e];
+		g[k] = vals[(size_t)c->vtx[k] * reyes_primvar_stride(v) + e];
 	}
 	for (int r = 0; r < 4; r++)
 		cf[r] = c->B[r * 4] * g[0] + c->B[r * 4 + 1] * g[1] + c->B[r * 4 + 2] * g[2] +
@@ -427,7 +422,7 @@ static float *floats(size_t count, bool *failed)
 static bool fill_var(const struct cpiece *c, const struct reyes_primvar *v, const double *rows,
 		     uint32_t nu, uint32_t nv, float *dst)
 {
-	size_t stride = stride_of(v), n = (size_t)nu * nv;
+	size_t stride = reyes_primvar_stride(v), n = (size_t)nu * nv;
 	if (!stride || !v->values)
 		return false;
 	for (size_t e = 0; e < stride; e++)
@@ -440,29 +435,6 @@ static bool fill_var(const struct cpiece *c, const struct reyes_primvar *v, cons
 				dst[e * n + (size_t)j * nu + i] = f;
 		}
 	return true;
-}
-
-static float *named(const struct cpiece *c, const char *name, size_t stride, const double *rows,
-		    uint32_t nu, uint32_t nv, bool *failed)
-{
-	const struct reyes_primvar *v = reyes_prim_var(c->p, name);
-	if (!v || stride_of(v) != stride)
-		return NULL;
-	float *dst = floats(stride * nu * nv, failed);
-	if (dst && !fill_var(c, v, rows, nu, nv, dst)) {
-		free(dst);
-		dst = NULL;
-	}
-	return dst;
-}
-
-static bool is_builtin(const char *name)
-{
-	static const char *const names[] = { "P", "N", "Cs", "Os", "s", "t", "st" };
-	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]); i++)
-		if (strcmp(name, names[i]) == 0)
-			return true;
-	return false;
 }
 
 static void put3(float *dst, uint32_t n, uint32_t k, const double a[3])
@@ -564,52 +536,17 @@ static void dice_disk(const struct cpiece *c, const struct reyes_patch *pa, int 
 	}
 }
 
-/* The primitive variables of the grid. */
-static bool dice_vars(const struct cpiece *c, const double *rows, struct reyes_grid *g)
+/* A piece's variables by row, for reyes_grid_fill_vars. */
+struct cpiece_fill {
+	const struct cpiece *c;
+	const double *rows;
+	uint32_t nu, nv;
+};
+
+static bool cpiece_fill(const void *ctx, const struct reyes_primvar *v, float *dst)
 {
-	bool failed = false;
-	uint32_t nu = g->nu, nv = g->nv, n = g->n;
-	const struct reyes_primvar *N = normals_of(c);
-	if (N) {
-		g->N = named(c, "N", 3, rows, nu, nv, &failed);
-		for (uint32_t k = 0; g->N && k < n; k++) {
-			float a[3] = { g->N[k], g->N[n + k], g->N[2 * n + k] }, r[3];
-			sl_v3_normalize(r, a);
-			g->N[k] = r[0], g->N[n + k] = r[1], g->N[2 * n + k] = r[2];
-		}
-	}
-	g->Cs = named(c, "Cs", 3, rows, nu, nv, &failed);
-	g->Os = named(c, "Os", 3, rows, nu, nv, &failed);
-	g->s = named(c, "s", 1, rows, nu, nv, &failed);
-	g->t = named(c, "t", 1, rows, nu, nv, &failed);
-	const struct reyes_prim *p = c->p;
-	uint32_t nuser = 0;
-	for (uint32_t i = 0; i < p->nvars; i++)
-		if (p->vars[i].name && !is_builtin(p->vars[i].name) && stride_of(&p->vars[i]))
-			nuser++;
-	if (nuser) {
-		g->vars = calloc(nuser, sizeof(*g->vars));
-		if (!g->vars)
-			return false;
-	}
-	for (uint32_t i = 0; i < p->nvars && nuser; i++) {
-		const struct reyes_primvar *v = &p->vars[i];
-		if (!v->name || is_builtin(v->name) || !stride_of(v))
-			continue;
-		float *dst = floats(stride_of(v) * n, &failed);
-		if (!dst)
-			break;
-		if (!fill_var(c, v, rows, nu, nv, dst)) {
-			free(dst);
-			continue;
-		}
-		struct reyes_grid_var *gv = &g->vars[g->nvars++];
-		gv->name = v->name;
-		gv->type = v->type;
-		gv->arraylen = v->arraylen;
-		gv->data = dst;
-	}
-	return !failed;
+	const struct cpiece_fill *f = ctx;
+	return fill_var(f->c, v, f->rows, f->nu, f->nv, dst);
 }
 
 bool reyes_curves_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
@@ -654,7 +591,9 @@ bool reyes_curves_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 		else
 			dice_ribbon(&c, pa, ti, rows, g);
 	}
-	if (!dice_vars(&c, rows, g))
+	/* "N" shades only where it orients the ribbons (normals_of). */
+	struct cpiece_fill cf = { &c, rows, g->nu, g->nv };
+	if (!reyes_grid_fill_vars(g, c.p, normals_of(&c) != NULL, cpiece_fill, &cf))
 		goto fail;
 	free(rows);
 	return true;

@@ -573,17 +573,12 @@ static double len3(const double a[3])
 	return sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
 }
 
-static size_t stride_of(const struct reyes_primvar *v)
-{
-	return (size_t)sl_type_ncomp(v->type) * (v->arraylen ? v->arraylen : 1);
-}
-
 /* Interpolate @var over the grid into @dst (stride planes of n floats); false if it does not fit. */
 static bool dice_var(const struct span *s, const struct ndice *d, const struct reyes_primvar *var,
 		     float *dst)
 {
 	const struct reyes_nurbs *nb = s->n;
-	size_t st = stride_of(var), n = d->n;
+	size_t st = reyes_primvar_stride(var), n = d->n;
 	const float *vals = var->values;
 	if (!st || !vals)
 		return false;
@@ -674,29 +669,6 @@ static float *nalloc(size_t count, bool *failed)
 	return p;
 }
 
-static bool is_special(const char *name)
-{
-	static const char *const names[] = { "P", "N", "Cs", "Os", "s", "t", "st" };
-	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]); i++)
-		if (strcmp(name, names[i]) == 0)
-			return true;
-	return false;
-}
-
-static float *named(const struct span *s, const struct ndice *d, const struct reyes_prim *p,
-		    const char *name, size_t stride, bool *failed)
-{
-	const struct reyes_primvar *v = reyes_prim_var(p, name);
-	if (!v || stride_of(v) != stride)
-		return NULL;
-	float *dst = nalloc(stride * d->n, failed);
-	if (dst && !dice_var(s, d, v, dst)) {
-		free(dst);
-		dst = NULL;
-	}
-	return dst;
-}
-
 /* Where dPdu ^ dPdv vanishes (a pole), the normal a little way in towards the piece's middle. */
 static void fix_normal(const struct span *s, double u, double v, double N[3])
 {
@@ -712,48 +684,16 @@ static void fix_normal(const struct span *s, double u, double v, double N[3])
 	}
 }
 
-static bool dice_vars(const struct span *s, const struct ndice *d, const struct reyes_prim *p,
-		      struct reyes_grid *g, bool *failed)
+/* A span's interpolation of one variable, for reyes_grid_fill_vars. */
+struct span_fill {
+	const struct span *s;
+	const struct ndice *d;
+};
+
+static bool span_fill(const void *ctx, const struct reyes_primvar *v, float *dst)
 {
-	uint32_t n = d->n;
-	g->N = named(s, d, p, "N", 3, failed);
-	if (g->N)
-		for (uint32_t k = 0; k < n; k++) {
-			float a[3] = { g->N[k], g->N[n + k], g->N[2 * n + k] }, r[3];
-			sl_v3_normalize(r, a);
-			g->N[k] = r[0], g->N[n + k] = r[1], g->N[2 * n + k] = r[2];
-		}
-	g->Cs = named(s, d, p, "Cs", 3, failed);
-	g->Os = named(s, d, p, "Os", 3, failed);
-	g->s = named(s, d, p, "s", 1, failed);
-	g->t = named(s, d, p, "t", 1, failed);
-	uint32_t nuser = 0;
-	for (uint32_t i = 0; i < p->nvars; i++)
-		if (p->vars[i].name && !is_special(p->vars[i].name) && stride_of(&p->vars[i]))
-			nuser++;
-	if (!nuser)
-		return true;
-	g->vars = calloc(nuser, sizeof(*g->vars));
-	if (!g->vars)
-		return false;
-	for (uint32_t i = 0; i < p->nvars; i++) {
-		const struct reyes_primvar *v = &p->vars[i];
-		if (!v->name || is_special(v->name) || !stride_of(v))
-			continue;
-		float *dst = nalloc(stride_of(v) * n, failed);
-		if (!dst)
-			return false;
-		if (!dice_var(s, d, v, dst)) {
-			free(dst);
-			continue;
-		}
-		struct reyes_grid_var *gv = &g->vars[g->nvars++];
-		gv->name = v->name;
-		gv->type = v->type;
-		gv->arraylen = v->arraylen;
-		gv->data = dst;
-	}
-	return true;
+	const struct span_fill *f = ctx;
+	return dice_var(f->s, f->d, v, dst);
 }
 
 bool reyes_nurbs_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
@@ -836,7 +776,8 @@ bool reyes_nurbs_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 	if (p->attrs && p->attrs->flip_normals)
 		for (size_t k = 0; k < 3 * (size_t)n; k++)
 			g->Ng[k] = -g->Ng[k];
-	if (!dice_vars(&s, &d, p, g, &failed) || failed)
+	struct span_fill sf = { &s, &d };
+	if (!reyes_grid_fill_vars(g, p, true, span_fill, &sf))
 		goto fail;
 	free(buf);
 	return true;

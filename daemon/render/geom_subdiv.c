@@ -55,11 +55,6 @@ static struct {
 	uint64_t clock;
 } cache = { .lock = PTHREAD_MUTEX_INITIALIZER };
 
-static size_t stride_of(const struct reyes_primvar *v)
-{
-	return (size_t)sl_type_ncomp(v->type) * (v->arraylen ? v->arraylen : 1);
-}
-
 static void sd_free(struct sd_mesh *m)
 {
 	if (!m)
@@ -78,7 +73,7 @@ static void sd_free(struct sd_mesh *m)
 static uint32_t *weld(const struct reyes_subdiv *sd, uint32_t ncorners, uint32_t npoints,
 		      const struct reyes_primvar *v)
 {
-	size_t st = stride_of(v);
+	size_t st = reyes_primvar_stride(v);
 	uint32_t *idx = malloc(sizeof(uint32_t) * (ncorners ? ncorners : 1));
 	uint32_t *head = malloc(sizeof(uint32_t) * (npoints ? npoints : 1));
 	uint32_t *next = malloc(sizeof(uint32_t) * (ncorners ? ncorners : 1));
@@ -144,7 +139,7 @@ static struct sd_mesh *sd_build(const struct reyes_prim *p, char *why, size_t wh
 	for (uint32_t i = 0; i < p->nvars; i++) {
 		m->channel[i] = -1;
 		const struct reyes_primvar *v = &p->vars[i];
-		if (v->cls != REYES_FACEVARYING || !stride_of(v) || v->count != ncorners)
+		if (v->cls != REYES_FACEVARYING || !reyes_primvar_stride(v) || v->count != ncorners)
 			continue;
 		index[t.nchannels] = weld(sd, (uint32_t)ncorners, p->npoints, v);
 		if (!index[t.nchannels])
@@ -247,7 +242,7 @@ bool reyes_subdiv_pieces(const struct reyes_prim *p, struct reyes_patch **out, s
 			 size_t *cap)
 {
 	const struct reyes_primvar *P = reyes_prim_var(p, "P");
-	if (!P || !P->values || stride_of(P) != 3 || P->count < p->npoints) {
+	if (!P || !P->values || reyes_primvar_stride(P) != 3 || P->count < p->npoints) {
 		rl_log(RL_LOG_ERROR, "primitive %u (subdivision mesh): \"P\" needs %u points",
 		       p->id, p->npoints);
 		return false;
@@ -301,7 +296,7 @@ static bool eval_P(const struct sd_mesh *m, const struct reyes_patch *pa, const 
 static const float *points_at(const struct reyes_prim *p, int t)
 {
 	const struct reyes_primvar *P = reyes_prim_var(p, "P");
-	if (!P || !P->values || stride_of(P) != 3 || P->count < p->npoints)
+	if (!P || !P->values || reyes_primvar_stride(P) != 3 || P->count < p->npoints)
 		return NULL;
 	return t && P->values1 ? P->values1 : P->values;
 }
@@ -384,7 +379,7 @@ struct sd_dice {
 static bool sd_var(const struct sd_dice *d, const struct reyes_primvar *v, const float *vals,
 		   float *dst)
 {
-	size_t st = stride_of(v);
+	size_t st = reyes_primvar_stride(v);
 	uint32_t n = d->n;
 	if (!st || !vals)
 		return false;
@@ -419,63 +414,10 @@ static bool sd_var(const struct sd_dice *d, const struct reyes_primvar *v, const
 	return true;
 }
 
-static float *sd_named(const struct sd_dice *d, const char *name, size_t stride, bool *failed)
+/* For reyes_grid_fill_vars. */
+static bool sd_fill(const void *ctx, const struct reyes_primvar *v, float *dst)
 {
-	const struct reyes_primvar *v = reyes_prim_var(d->p, name);
-	if (!v || stride_of(v) != stride)
-		return NULL;
-	float *dst = malloc(stride * d->n * sizeof(float));
-	if (!dst) {
-		*failed = true;
-		return NULL;
-	}
-	if (!sd_var(d, v, v->values, dst)) {
-		free(dst);
-		dst = NULL;
-	}
-	return dst;
-}
-
-static bool is_special(const char *name)
-{
-	static const char *const names[] = { "P", "N", "Cs", "Os", "s", "t", "st" };
-	for (size_t i = 0; i < sizeof(names) / sizeof(names[0]); i++)
-		if (strcmp(name, names[i]) == 0)
-			return true;
-	return false;
-}
-
-/* The other primitive variables, by name, for shader parameters. */
-static bool sd_user_vars(const struct sd_dice *d, struct reyes_grid *g)
-{
-	const struct reyes_prim *p = d->p;
-	uint32_t nuser = 0;
-	for (uint32_t i = 0; i < p->nvars; i++)
-		if (p->vars[i].name && !is_special(p->vars[i].name) && stride_of(&p->vars[i]))
-			nuser++;
-	if (!nuser)
-		return true;
-	g->vars = calloc(nuser, sizeof(*g->vars));
-	if (!g->vars)
-		return false;
-	for (uint32_t i = 0; i < p->nvars; i++) {
-		const struct reyes_primvar *v = &p->vars[i];
-		if (!v->name || is_special(v->name) || !stride_of(v))
-			continue;
-		float *dst = malloc(stride_of(v) * d->n * sizeof(float));
-		if (!dst)
-			return false;
-		if (!sd_var(d, v, v->values, dst)) {
-			free(dst);
-			continue;
-		}
-		struct reyes_grid_var *gv = &g->vars[g->nvars++];
-		gv->name = v->name;
-		gv->type = v->type;
-		gv->arraylen = v->arraylen;
-		gv->data = dst;
-	}
-	return true;
+	return sd_var(ctx, v, v->values, dst);
 }
 
 /*
@@ -533,26 +475,6 @@ static bool sd_positions(const struct sd_dice *d, const struct reyes_patch *pa,
 	return true;
 }
 
-static void sd_texcoords(const struct sd_dice *d, struct reyes_grid *g, bool *failed)
-{
-	uint32_t n = d->n;
-	g->Cs = sd_named(d, "Cs", 3, failed);
-	g->Os = sd_named(d, "Os", 3, failed);
-	g->s = sd_named(d, "s", 1, failed);
-	g->t = sd_named(d, "t", 1, failed);
-	if (g->s && g->t)
-		return;
-	float *st = sd_named(d, "st", 2, failed);
-	if (!st)
-		return;
-	if (!g->s && (g->s = malloc(n * sizeof(float))))
-		memcpy(g->s, st, n * sizeof(float));
-	if (!g->t && (g->t = malloc(n * sizeof(float))))
-		memcpy(g->t, st + n, n * sizeof(float));
-	*failed |= !g->s || !g->t;
-	free(st);
-}
-
 bool reyes_subdiv_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 		       struct reyes_grid *g)
 {
@@ -573,7 +495,7 @@ bool reyes_subdiv_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 	uint32_t n = nu * nv;
 	size_t maxst = 3;
 	for (uint32_t i = 0; i < p->nvars; i++)
-		maxst = stride_of(&p->vars[i]) > maxst ? stride_of(&p->vars[i]) : maxst;
+		maxst = reyes_primvar_stride(&p->vars[i]) > maxst ? reyes_primvar_stride(&p->vars[i]) : maxst;
 	d.n = n;
 	double *uv = malloc(sizeof(double) * 2 * n);
 	double *P = malloc(sizeof(double) * 9 * n);
@@ -603,10 +525,9 @@ bool reyes_subdiv_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 		g->dv = (float)sv;
 		failed = !sd_positions(&d, pa, g, P, P + 3 * (size_t)n, P + 6 * (size_t)n);
 	}
+	/* The limit normal shades: an "N" given on the mesh is not used (as prman). */
 	if (!failed)
-		sd_texcoords(&d, g, &failed);
-	if (!failed)
-		failed = !sd_user_vars(&d, g);
+		failed = !reyes_grid_fill_vars(g, p, false, sd_fill, &d);
 	free(uv);
 	free(P);
 	free(d.tmp);
