@@ -89,3 +89,36 @@ finish() {
 	echo "$checks checks, $failures failed"
 	[ "$failures" -eq 0 ]
 }
+
+# expect_matches_render WHAT REF IMAGE [MEAN_PCT MAX_PCT]: `relight diff REF IMAGE`
+# (paths under $work) within MEAN_PCT mean and MAX_PCT max error of the 8-bit
+# range, colour and alpha both: by default 0.1 % and 1 %, the acceptance line of
+# a preview against the reference render. The figures are printed either way.
+expect_matches_render() {
+	local name=$1 ref=$2 img=$3 mean=${4:-0.1} max=${5:-1.0}
+	run "$name vs render" "$relight" diff --json "$work/$ref" "$work/$img"
+	expect_status 0
+	checks=$((checks + 1))
+	python3 - "$work/stdout" "$name" "$mean" "$max" <<'PY' || fail "$name differs from the render"
+import json, sys
+d = json.load(open(sys.argv[1]))
+name, mean, mx = sys.argv[2], float(sys.argv[3]), float(sys.argv[4])
+a = d["alpha"]
+assert a is not None, "no alpha compared"
+print("%s vs render: colour mean %.4f %% max %.4f %%, alpha mean %.4f %% max %.4f %% (limits %g %%, %g %%)"
+      % (name, d["mean_pct"], d["max_pct"], a["mean_pct"], a["max_pct"], mean, mx))
+assert d["mean_pct"] <= mean and d["max_pct"] <= mx, d
+assert a["mean_pct"] <= mean and a["max_pct"] <= mx, a
+PY
+}
+
+# skip_without_gpu: after a `run` of a GPU command, end the test when it failed
+# for want of an EGL/OpenGL 4.3 context: a loud skip (77) if every check so far
+# passed, a failure otherwise.
+skip_without_gpu() {
+	if [ "$status" -ne 0 ] && grep -q "no GPU context" "$work/stderr"; then
+		echo "SKIP: the GPU part: no EGL/OpenGL 4.3 context here: $(head -c 300 "$work/stderr")"
+		[ "$failures" -eq 0 ] || { finish; exit 1; }
+		exit 77
+	fi
+}
