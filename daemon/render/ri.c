@@ -2430,6 +2430,7 @@ static const struct handler handlers[] = {
 	{"PointsGeneralPolygons", reyes_ri_req_points_polygons, F_MOTION | F_PRIM},
 	{"Patch", reyes_ri_req_patch, F_MOTION | F_PRIM},
 	{"PatchMesh", reyes_ri_req_patch_mesh, F_MOTION | F_PRIM},
+	{"Blobby", reyes_ri_req_blobby, F_PRIM},
 };
 
 /*

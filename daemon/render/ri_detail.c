@@ -118,7 +118,7 @@ static void to_raster(const struct reyes_options *o, const float win[4], double 
  * plane and the points where its edges cross it. 0 when none of it is in
  * front of the near plane.
  */
-static float raster_area(const struct reyes_options *o, const float m[16], const float b[6])
+float reyes_ri_raster_area(const struct reyes_options *o, const float m[16], const float b[6])
 {
 	float win[4];
 	screen_window(o, win);
@@ -187,7 +187,7 @@ void reyes_ri_req_detail(struct ri *ri, const struct rib_request *r)
 			      "is defined, not at each ObjectInstance");
 	float m[16];
 	sl_m44_mul(m, ri->gs.x.m[0], ri->opt.o.world_to_camera);
-	float area = raster_area(&ri->opt.o, m, b) * ri->opt.relative_detail;
+	float area = reyes_ri_raster_area(&ri->opt.o, m, b) * ri->opt.relative_detail;
 	ri->gs.a.detail = isfinite(area) ? area : INFINITY;
 	ri->gs.a.objset |= OBJ_DETAIL;
 	ri->gs.bundle = NULL;

@@ -516,4 +516,30 @@ void reyes_ri_motion_end(struct ri *ri, bool apply);
 /** The object definition closes (or unwinds). */
 void reyes_ri_object_end(struct ri *ri);
 
+/* ---- ri_prims.c and ri_detail.c: for the primitives of their own files -------------- */
+
+/** May a primitive go here (inside the world or an object definition)? Reported if not. */
+bool reyes_ri_geometry_ok(struct ri *ri, const struct rib_request *r);
+/** A zeroed primitive of @kind in the current arena. */
+struct reyes_prim *reyes_ri_new_prim(struct ri *ri, enum reyes_prim_kind kind);
+/**
+ * The primitive variables of @r into @p, each checked against the count of
+ * its class (sizes[class] items, enum reyes_class); @points: "P" is required.
+ */
+bool reyes_ri_prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t sizes[5],
+			bool points, struct reyes_prim *p);
+/** Adds a finished primitive to the world, the object being defined or the motion block. */
+void reyes_ri_emit_prim(struct ri *ri, const struct rib_request *r, struct reyes_prim *p);
+/**
+ * The raster area of the rectangle around bound @b (xmin xmax ymin ymax zmin
+ * zmax, in the space @m takes to camera space) clipped to the near plane, as
+ * Detail measures it; 0 when it is all behind the near plane.
+ */
+float reyes_ri_raster_area(const struct reyes_options *o, const float m[16], const float b[6]);
+
+/* ---- ri_blobby.c -------------------------------------------------------------------------- */
+
+/** Blobby: an implicit surface, polygonized to the shading rate where it is declared. */
+void reyes_ri_req_blobby(struct ri *ri, const struct rib_request *r);
+
 #endif

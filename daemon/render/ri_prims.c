@@ -1260,3 +1260,26 @@ void reyes_ri_req_object_instance(struct ri *ri, const struct rib_request *r)
 		rl_vec_push(ri->prims, q);
 	}
 }
+
+/* ---- for the primitives of other files (ri_blobby.c) ------------------------------- */
+
+bool reyes_ri_geometry_ok(struct ri *ri, const struct rib_request *r)
+{
+	return geometry_ok(ri, r);
+}
+
+struct reyes_prim *reyes_ri_new_prim(struct ri *ri, enum reyes_prim_kind kind)
+{
+	return new_prim(ri, kind);
+}
+
+bool reyes_ri_prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t sizes[5],
+			bool points, struct reyes_prim *p)
+{
+	return prim_vars(ri, r, sizes, points, p);
+}
+
+void reyes_ri_emit_prim(struct ri *ri, const struct rib_request *r, struct reyes_prim *p)
+{
+	emit_prim(ri, r, p);
+}
