@@ -19,8 +19,9 @@
 #include <string.h>
 
 #define ROOT_ITERS 60          /* false position steps on an edge, at most */
-#define ROOT_TOL 1e-9          /* ... until the bracket is this part of the edge */
+#define ROOT_TOL 1e-7          /* ... until the bracket is this part of the edge */
 #define MAX_SAMPLES (1u << 24) /* grid samples of one polygonization */
+#define MAX_WORK 4e8           /* grid samples times instructions, at most */
 
 /* ---- decoding ------------------------------------------------------------------- */
 
@@ -665,10 +666,19 @@ bool reyes_blobby_polygonize(const struct reyes_blobby *b, double cell, uint32_t
 			     struct reyes_blobby_mesh *m)
 {
 	*m = (struct reyes_blobby_mesh){0};
+	m->cell = cell;
 	if (!b->bounded || !(cell > 0) || max_cells < 2)
 		return false;
 	struct poly s = {.b = b};
 	uint32_t n[3];
+	/* a long program on a fine grid: coarser cells, so that the work stays bounded */
+	double ext_v = 1;
+	for (int c = 0; c < 3; c++)
+		ext_v *= fmin((b->hi[c] - b->lo[c]) / cell + 3, max_cells + 1.0);
+	if (ext_v * b->ninstr > MAX_WORK) {
+		cell *= cbrt(ext_v * b->ninstr / MAX_WORK);
+		m->coarsened = true;
+	}
 	for (int c = 0; c < 3; c++) {
 		double ext = b->hi[c] - b->lo[c];
 		double cells = ceil(ext / cell);
@@ -683,6 +693,7 @@ bool reyes_blobby_polygonize(const struct reyes_blobby *b, double cell, uint32_t
 		s.org[c] = b->lo[c] - s.step[c];
 	}
 	s.nx = n[0], s.ny = n[1], s.nz = n[2];
+	m->cell = fmax(s.step[0], fmax(s.step[1], s.step[2]));
 	uint64_t samples = (uint64_t)(n[0] + 1) * (n[1] + 1) * (n[2] + 1);
 	if (samples > MAX_SAMPLES)
 		return false;

@@ -85,15 +85,19 @@ struct reyes_blobby_mesh {
 	float *N;                 /* npoints x 3, unit, outward (along minus the gradient) */
 	uint32_t *tris;           /* ntris x 3; P[1] - P[0] ^ P[2] - P[0] points outward */
 	double *leaf;             /* npoints x nleaf: the leaves' field values at each point */
+	double cell;              /* the grid's widest cell */
+	bool coarsened;           /* wider than asked: the program is too long for that grid */
 };
 
 /**
  * Polygonize @b over its bound on a grid of cells at most @cell wide
  * (object space), at most @max_cells cells per axis: Freudenthal's six
  * tetrahedra per cell (crack-free between cells), each crossing of the
- * threshold found on its edge by false position to 1e-9 of the edge,
+ * threshold found on its edge by false position to 1e-7 of the edge,
  * shared between the tetrahedra that meet there. The field is taken as
- * below the threshold outside the bound, so the mesh is closed. False only
+ * below the threshold outside the bound, so the mesh is closed. Samples
+ * times instructions are bounded (4e8): a longer program gets wider cells
+ * (m->coarsened). False only
  * when memory runs out or the grid would be too large.
  */
 bool reyes_blobby_polygonize(const struct reyes_blobby *b, double cell, uint32_t max_cells,

@@ -27,13 +27,17 @@
  * The polygonization's cells are this many pixels wide times the square
  * root of the shading rate (a micropolygon's side), and at most MAX_CELLS
  * per axis. The mesh's vertices are on the surface, so a chord of c pixels
- * on a surface of radius R pixels strays c^2 / 8R pixels from it: a few
- * hundredths of a pixel at the default rate.
+ * on a surface of radius R pixels strays c^2 / 8R pixels from it: a
+ * triangle's edge is at most a cell's diagonal, 7 pixels at the default
+ * rate, which strays 0.3 pixel from a surface 20 pixels in radius and 0.06
+ * from one of 100 (shading uses the field's normals, exact at the vertices).
+ * Finer cells would cost many tiny triangles, each diced on its own.
  */
-#define CELL_PIXELS 2.0
+#define CELL_PIXELS 4.0
 #define MAX_CELLS 192
 #define MIN_CELLS 8            /* across the bound's longest side, however small it looks */
 #define UNSEEN_CELLS 32        /* ... for a bound all behind the camera (it may cast shadows) */
+#define NO_CAMERA_CELLS 64     /* ... for an object defined before WorldBegin */
 
 /* Integers of a code array, each within int32. */
 static int32_t *code_values(struct ri *ri, const struct rib_value *v)
@@ -65,7 +69,7 @@ static double cell_size(struct ri *ri, const struct reyes_blobby *b)
 	double e1 = ext[0] + ext[1] + ext[2] - e0 - fmin(ext[0], fmin(ext[1], ext[2]));
 	double coarsest = e0 / MIN_CELLS;
 	if (!ri->world)
-		return coarsest;
+		return e0 / NO_CAMERA_CELLS;
 	sl_m44_mul(m, ri->gs.x.m[0], ri->opt.o.world_to_camera);
 	double area = reyes_ri_raster_area(&ri->opt.o, m, box);
 	if (!(area > 0))
@@ -189,6 +193,10 @@ void reyes_ri_req_blobby(struct ri *ri, const struct rib_request *r)
 			     "memory or degenerate)");
 		goto out;
 	}
+	if (m.coarsened)
+		reyes_ri_warn(ri, r->loc, "Blobby: %u instructions are too many for a grid at "
+			      "the shading rate: polygonized on cells %g wide (object space) instead",
+			      b.ninstr, m.cell);
 	if (m.ntris)
 		reyes_ri_emit_prim(ri, r, mesh_prim(ri, r, &tmp, &b, &m));
 	reyes_blobby_mesh_finish(&m);
