@@ -2431,6 +2431,7 @@ static const struct handler handlers[] = {
 	{"Patch", reyes_ri_req_patch, F_MOTION | F_PRIM},
 	{"PatchMesh", reyes_ri_req_patch_mesh, F_MOTION | F_PRIM},
 	{"Blobby", reyes_ri_req_blobby, F_PRIM},
+	{"Geometry", reyes_ri_req_geometry, F_PRIM},
 };
 
 /*

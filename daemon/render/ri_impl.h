@@ -542,4 +542,9 @@ float reyes_ri_raster_area(const struct reyes_options *o, const float m[16], con
 /** Blobby: an implicit surface, polygonized to the shading rate where it is declared. */
 void reyes_ri_req_blobby(struct ri *ri, const struct rib_request *r);
 
+/* ---- ri_geometry.c ------------------------------------------------------------------------ */
+
+/** Geometry: "teapot", the Newell teapot; other names are warned about. */
+void reyes_ri_req_geometry(struct ri *ri, const struct rib_request *r);
+
 #endif

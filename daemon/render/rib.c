@@ -158,6 +158,7 @@ static const struct reqdef reqdefs[] = {
 	{"Patch", "type:s", TAKES_PARAMS | PRIMITIVE},
 	{"PatchMesh", "type:s nu:i uwrap:s nv:i vwrap:s", TAKES_PARAMS | PRIMITIVE},
 	{"Blobby", "nleaf:i code:I floats:a strings:S", TAKES_PARAMS | PRIMITIVE},
+	{"Geometry", "type:s", TAKES_PARAMS | PRIMITIVE},
 };
 
 /*
@@ -168,7 +169,7 @@ static const struct reqdef reqdefs[] = {
 static const char *const unsupported[] = {
 	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord",
 	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Curves", "Deformation",
-	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Geometry", "IfBegin",
+	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "IfBegin",
 	"IfEnd", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
 	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
 	"Shader", "SolidBegin", "SolidEnd", "SubdivisionMesh", "System", "TrimCurve",
