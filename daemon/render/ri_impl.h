@@ -313,6 +313,8 @@ struct ri {
 	RL_VEC(struct reyes_prim) prims;
 	RL_VEC(struct space) spaces;
 	struct strmap space_index;
+	/* ri_procedural.c: DelayedReadArchive left unread (out of view) in world unread_world */
+	uint32_t unread_archives, unread_world;
 };
 
 /* ---- ri.c: diagnostics ------------------------------------------------------------- */
@@ -541,6 +543,29 @@ float reyes_ri_raster_area(const struct reyes_options *o, const float m[16], con
 
 /** Blobby: an implicit surface, polygonized to the shading rate where it is declared. */
 void reyes_ri_req_blobby(struct ri *ri, const struct rib_request *r);
+
+/* ---- ri.c: archives, for Procedural ------------------------------------------------------ */
+
+/**
+ * Read archive @name (found as ReadArchive finds it) in the current state;
+ * @what names the request in messages. False (reported at @r) when it
+ * cannot be found or read, nests too deeply or would read itself.
+ */
+bool reyes_ri_read_archive(struct ri *ri, const struct rib_request *r, const char *what,
+			   const char *name);
+/** Read @len bytes of RIB at @data, named @name in diagnostics, in the current state. */
+bool reyes_ri_read_buffer(struct ri *ri, const char *name, const char *data, size_t len);
+/** Is bound @b (object space under the current transformation) outside the view? */
+bool reyes_ri_bound_unseen(struct ri *ri, const float b[6]);
+
+/* ---- ri_procedural.c ---------------------------------------------------------------------- */
+
+/** Procedural: DelayedReadArchive and RunProgram; DynamicLoad is refused. */
+void reyes_ri_req_procedural(struct ri *ri, const struct rib_request *r);
+/** A light @l was declared in the world at @r: warned about if it reads a shadow map
+    that archives left unread (out of view) before it should have cast into. */
+void reyes_ri_procedural_light(struct ri *ri, const struct rib_request *r,
+			       const struct reyes_light *l);
 
 /* ---- ri_geometry.c ------------------------------------------------------------------------ */
 

@@ -159,6 +159,7 @@ static const struct reqdef reqdefs[] = {
 	{"PatchMesh", "type:s nu:i uwrap:s nv:i vwrap:s", TAKES_PARAMS | PRIMITIVE},
 	{"Blobby", "nleaf:i code:I floats:a strings:S", TAKES_PARAMS | PRIMITIVE},
 	{"Geometry", "type:s", TAKES_PARAMS | PRIMITIVE},
+	{"Procedural", "procname:s args:S bound:a", PRIMITIVE},
 };
 
 /*
@@ -171,7 +172,7 @@ static const char *const unsupported[] = {
 	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Curves", "Deformation",
 	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "IfBegin",
 	"IfEnd", "MakeBrickMap", "MakeBump", "NuPatch", "Perspective",
-	"Points", "Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
+	"Points", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
 	"Shader", "SolidBegin", "SolidEnd", "SubdivisionMesh", "System", "TrimCurve",
 };
 
