@@ -21,8 +21,7 @@ identical() {
 requests="10:ColorSamples 12:ClippingPlane 14:ErrorHandler
 15:Perspective 19:AreaLightSource 21:Resource 22:Shader 23:DisplayChannel 24:Bound
 25:Deformation 26:ArchiveRecord 27:ScopedCoordinateSystem 28:MakeBump 33:SolidBegin
-34:SolidEnd 35:NuPatch 36:TrimCurve 37:SubdivisionMesh 38:Points 39:Curves
-41:Procedural"
+34:SolidEnd 35:NuPatch 36:TrimCurve 37:SubdivisionMesh 38:Points 39:Curves"
 nrequests=$(echo $requests | wc -w)
 
 run "sphere alone" bash -c "cd '$work' && '$relight' render sphere.rib"
