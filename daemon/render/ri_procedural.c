@@ -23,6 +23,7 @@
  *    its output, runs past $RELIGHT_RUNPROGRAM_TIMEOUT seconds (default 60;
  *    it is killed) or writes what is not RIB is an error at the Procedural's
  *    line: nothing of its output is used and the rest of the frame renders.
+ *    A read that only checks (reyes_ri_opts's check_only) runs no program.
  *  - DynamicLoad: relight loads no foreign code: a warning, an error with
  *    --strict.
  */
@@ -308,6 +309,9 @@ static void run_program_proc(struct ri *ri, const struct rib_request *r, const f
 	char **argv = rl_arena_alloc(ri->perm, sizeof(char *) * (MAX_ARGS + 1));
 	if (split_words(ri->perm, a->strs[0], argv) == 0)
 		FAIL(ri, r->loc, "Procedural \"RunProgram\": no program named");
+	/* a read that only checks (relight render's planning read, the fuzzer) runs nothing */
+	if (ri->opts->check_only)
+		return;
 	float m[16];
 	sl_m44_mul(m, ri->gs.x.m[0], ri->opt.o.world_to_camera);
 	double detail = ri->world ? reyes_ri_raster_area(&ri->opt.o, m, b) : 0;
