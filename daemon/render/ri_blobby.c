@@ -37,7 +37,7 @@
 #define MAX_CELLS 192
 #define MIN_CELLS 8            /* across the bound's longest side, however small it looks */
 #define UNSEEN_CELLS 32        /* ... for a bound all behind the camera (it may cast shadows) */
-#define NO_CAMERA_CELLS 64     /* ... for an object defined before WorldBegin */
+#define NO_CAMERA_CELLS 32     /* ... for an object defined before WorldBegin */
 
 /* Integers of a code array, each within int32. */
 static int32_t *code_values(struct ri *ri, const struct rib_value *v)
