@@ -325,7 +325,7 @@ double reyes_blobby_field(const struct reyes_blobby *b, const double p[3], doubl
 {
 	for (uint32_t k = 0; k < b->ninstr; k++) {
 		const struct reyes_blobby_instr *in = &b->instr[k];
-		const uint32_t *o = b->operands + in->first;
+		const uint32_t *o = b->operands ? b->operands + in->first : NULL;
 		double v;
 		switch (in->op) {
 		case BLOBBY_ADD:
