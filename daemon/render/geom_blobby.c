@@ -21,7 +21,7 @@
 #define ROOT_ITERS 60          /* false position steps on an edge, at most */
 #define ROOT_TOL 1e-7          /* ... until the bracket is this part of the edge */
 #define MAX_SAMPLES (1u << 24) /* grid samples of one polygonization */
-#define MAX_WORK 4e8           /* grid samples times instructions, at most */
+#define MAX_WORK 1e8           /* grid samples times instructions, at most */
 
 /* ---- decoding ------------------------------------------------------------------- */
 

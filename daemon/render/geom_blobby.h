@@ -96,7 +96,7 @@ struct reyes_blobby_mesh {
  * threshold found on its edge by false position to 1e-7 of the edge,
  * shared between the tetrahedra that meet there. The field is taken as
  * below the threshold outside the bound, so the mesh is closed. Samples
- * times instructions are bounded (4e8): a longer program gets wider cells
+ * times instructions are bounded (1e8): a longer program gets wider cells
  * (m->coarsened). False only
  * when memory runs out or the grid would be too large.
  */

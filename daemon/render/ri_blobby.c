@@ -34,7 +34,7 @@
  * Finer cells would cost many tiny triangles, each diced on its own.
  */
 #define CELL_PIXELS 4.0
-#define MAX_CELLS 192
+#define MAX_CELLS 128
 #define MIN_CELLS 8            /* across the bound's longest side, however small it looks */
 #define UNSEEN_CELLS 32        /* ... for a bound all behind the camera (it may cast shadows) */
 #define NO_CAMERA_CELLS 32     /* ... for an object defined before WorldBegin */
