@@ -2065,6 +2065,7 @@ static void req_light_source(struct ri *ri, const struct rib_request *r)
 	if (world) {
 		rl_vec_push(ri->lights, l);
 		strmap_put(&ri->light_index, handle, index + 1);
+		reyes_ri_procedural_light(ri, r, &l);
 	} else {
 		rl_vec_push(ri->pre_lights, l);
 		strmap_put(&ri->pre_light_index, handle, index + 1);
@@ -2098,8 +2099,13 @@ static struct rib_reader_opts reader_opts(struct ri *ri)
 	};
 }
 
-/* Reads one file (the top-level one or an archive) with the builder's handler. */
-static bool read_file(struct ri *ri, const char *path, const struct stat *st)
+/*
+ * Reads one file (the top-level one or an archive) with the builder's
+ * handler; or, with @data, @len bytes of RIB in memory named @path (a
+ * procedural's output).
+ */
+static bool read_source(struct ri *ri, const char *path, const struct stat *st, const char *data,
+			size_t len)
 {
 	struct file f = {.path = path};
 	if (st) {
@@ -2109,11 +2115,15 @@ static bool read_file(struct ri *ri, const char *path, const struct stat *st)
 	rl_vec_push(ri->files, f);
 	struct rib_reader_opts ro = reader_opts(ri);
 	int n = 0;
+	/* an archive a Procedural reads holds requests of its own, not that primitive's */
+	bool in_prim = ri->in_prim, prim_failed = ri->prim_failed;
+	ri->in_prim = false;
 	/* The errors of this file's reader that dropped primitives, apart from
 	   those of the archives it reads. */
 	int outer = ri->reader_prim;
 	ri->reader_prim = 0;
-	bool ok = rib_read_file(path, &ro, on_request, ri, &n);
+	bool ok = data ? rib_read_buffer(path, data, len, &ro, on_request, ri, &n)
+		       : rib_read_file(path, &ro, on_request, ri, &n);
 	forward_reader_diag(ri);
 	ri->reader_errors += n - ri->reader_prim;
 	ri->reader_prim_total += ri->reader_prim;
@@ -2123,7 +2133,19 @@ static bool read_file(struct ri *ri, const char *path, const struct stat *st)
 	if (!ri->stop)
 		close_file_blocks(ri);
 	ri->files.len--;
+	ri->in_prim = in_prim;
+	ri->prim_failed = prim_failed;
 	return ok;
+}
+
+static bool read_file(struct ri *ri, const char *path, const struct stat *st)
+{
+	return read_source(ri, path, st, NULL, 0);
+}
+
+bool reyes_ri_read_buffer(struct ri *ri, const char *name, const char *data, size_t len)
+{
+	return read_source(ri, name, NULL, data, len);
 }
 
 /* The directory part of @file, in perm ("." when none). */
@@ -2137,34 +2159,50 @@ static const char *dir_of(struct ri *ri, const char *file)
 	return rl_arena_strndup(ri->perm, file, (size_t)(slash - file));
 }
 
+bool reyes_ri_read_archive(struct ri *ri, const struct rib_request *r, const char *what,
+			   const char *name)
+{
+	if (ri->files.len > MAX_ARCHIVE_DEPTH) {
+		reyes_ri_err(ri, r->loc, "%s '%s': archives nested too deeply (limit %d)", what,
+			     name, MAX_ARCHIVE_DEPTH);
+		return false;
+	}
+	if (++ri->archive_reads > MAX_ARCHIVE_READS) {
+		reyes_ri_err(ri, r->loc, "too many %s requests (limit %d)", what,
+			     MAX_ARCHIVE_READS);
+		return false;
+	}
+	const char *path = search_file(ri, name, dir_of(ri, r->loc.file), ri->opt.o.archive_path);
+	if (!path) {
+		reyes_ri_err(ri, r->loc, "cannot find archive '%s' (searched: %s:%s)", name,
+			     dir_of(ri, r->loc.file), ri->opt.o.archive_path);
+		return false;
+	}
+	struct stat st;
+	if (stat(path, &st) != 0) {
+		reyes_ri_err(ri, r->loc, "cannot read archive '%s'", path);
+		return false;
+	}
+	for (size_t i = 0; i < ri->files.len; i++) {
+		const struct file *f = &ri->files.data[i];
+		if (f->have_st && f->st.st_dev == st.st_dev && f->st.st_ino == st.st_ino) {
+			reyes_ri_err(ri, r->loc, "%s '%s' would read itself again (%s)", what, name,
+				     path);
+			return false;
+		}
+	}
+	return read_file(ri, path, &st);
+}
+
 static void req_read_archive(struct ri *ri, const struct rib_request *r)
 {
 	const char *name;
 	if (!reyes_ri_str_arg(ri, r, 0, &name))
 		return;
-	if (ri->files.len > MAX_ARCHIVE_DEPTH)
-		FAIL(ri, r->loc, "ReadArchive '%s': archives nested too deeply (limit %d)", name,
-			   MAX_ARCHIVE_DEPTH);
-	if (++ri->archive_reads > MAX_ARCHIVE_READS)
-		FAIL(ri, r->loc, "too many ReadArchive requests (limit %d)",
-			   MAX_ARCHIVE_READS);
-	const char *path = search_file(ri, name, dir_of(ri, r->loc.file), ri->opt.o.archive_path);
-	if (!path)
-		FAIL(ri, r->loc, "cannot find archive '%s' (searched: %s:%s)", name,
-			   dir_of(ri, r->loc.file), ri->opt.o.archive_path);
-	struct stat st;
-	if (stat(path, &st) != 0)
-		FAIL(ri, r->loc, "cannot read archive '%s'", path);
-	for (size_t i = 0; i < ri->files.len; i++) {
-		const struct file *f = &ri->files.data[i];
-		if (f->have_st && f->st.st_dev == st.st_dev && f->st.st_ino == st.st_ino)
-			FAIL(ri, r->loc, "ReadArchive '%s' would read itself again (%s)", name,
-				   path);
-	}
 	for (uint32_t i = 0; i < r->nparams; i++)
 		reyes_ri_warn(ri, r->params[i].loc, "ReadArchive: parameter '%s' ignored",
 			      r->params[i].token);
-	read_file(ri, path, &st);
+	reyes_ri_read_archive(ri, r, "ReadArchive", name);
 }
 
 static bool wrap_ok(const char *w)
@@ -2456,6 +2494,9 @@ static const struct handler handlers[] = {
 	{"TrimCurve", reyes_ri_req_trim_curve, F_PRIM},
 	{"Curves", reyes_ri_req_curves, F_MOTION | F_PRIM},
 	{"Points", reyes_ri_req_points, F_MOTION | F_PRIM},
+	{"Blobby", reyes_ri_req_blobby, F_PRIM},
+	{"Geometry", reyes_ri_req_geometry, F_PRIM},
+	{"Procedural", reyes_ri_req_procedural, F_PRIM},
 };
 
 /*

@@ -113,7 +113,7 @@ void reyes_ri_req_curves(struct ri *ri, const struct rib_request *r)
 	p->curves = cv;
 	p->npoints = np;
 	uint32_t sizes[5] = {1, nc, (uint32_t)nvary, np, (uint32_t)nvary};
-	if (reyes_ri_prim_vars(ri, r, sizes, p) && widths_ok(ri, r, p))
+	if (reyes_ri_prim_vars(ri, r, sizes, true, p) && widths_ok(ri, r, p))
 		reyes_ri_emit_prim(ri, r, p);
 }
 
@@ -125,7 +125,7 @@ void reyes_ri_req_points(struct ri *ri, const struct rib_request *r)
 	struct reyes_prim *p = reyes_ri_new_prim(ri, REYES_POINTS);
 	p->npoints = np;
 	uint32_t sizes[5] = {1, 1, np, np, np};
-	if (!reyes_ri_prim_vars(ri, r, sizes, p) || !widths_ok(ri, r, p))
+	if (!reyes_ri_prim_vars(ri, r, sizes, true, p) || !widths_ok(ri, r, p))
 		return;
 	if (reyes_prim_var(p, "N"))
 		reyes_ri_warn(ri, r->loc, "Points: \"N\" (disks facing N) is not supported: the "

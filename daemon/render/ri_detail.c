@@ -118,7 +118,7 @@ static void to_raster(const struct reyes_options *o, const float win[4], double 
  * plane and the points where its edges cross it. 0 when none of it is in
  * front of the near plane.
  */
-static float raster_area(const struct reyes_options *o, const float m[16], const float b[6])
+float reyes_ri_raster_area(const struct reyes_options *o, const float m[16], const float b[6])
 {
 	float win[4];
 	screen_window(o, win);
@@ -187,7 +187,7 @@ void reyes_ri_req_detail(struct ri *ri, const struct rib_request *r)
 			      "is defined, not at each ObjectInstance");
 	float m[16];
 	sl_m44_mul(m, ri->gs.x.m[0], ri->opt.o.world_to_camera);
-	float area = raster_area(&ri->opt.o, m, b) * ri->opt.relative_detail;
+	float area = reyes_ri_raster_area(&ri->opt.o, m, b) * ri->opt.relative_detail;
 	ri->gs.a.detail = isfinite(area) ? area : INFINITY;
 	ri->gs.a.objset |= OBJ_DETAIL;
 	ri->gs.bundle = NULL;
@@ -267,4 +267,47 @@ void reyes_ri_req_geometric_representation(struct ri *ri, const struct rib_reque
 			      "GeometricRepresentation \"%s\" is not supported: the primitives "
 			      "that follow render as surfaces",
 			      type);
+}
+
+/*
+ * Is @b (xmin xmax ymin ymax zmin zmax in the current object space) outside
+ * what the camera sees, at shutter open and close alike? It is when all its
+ * corners, at both times, lie beyond one plane of the viewing volume: the
+ * near or far clipping plane, or a side of the screen window widened by the
+ * pixel filter's reach and a margin of 8 pixels. Depth of field and a
+ * moving camera see more than the window: nothing is outside then, nor
+ * before the camera is known (outside a world).
+ */
+bool reyes_ri_bound_unseen(struct ri *ri, const float b[6])
+{
+	const struct reyes_options *o = &ri->opt.o;
+	if (!ri->world || o->fstop > 0 || o->camera_moving)
+		return false;
+	float win[4];
+	screen_window(o, win);
+	double mx = (8 + o->filter_width[0]) * (win[1] - win[0]) / o->xres;
+	double my = (8 + o->filter_width[1]) * (win[3] - win[2]) / o->yres;
+	double w[4] = {win[0] - mx, win[1] + mx, win[2] - my, win[3] + my};
+	double d = o->perspective ? 1 / tan(o->fov * (PI_D / 360)) : 1;
+	/* outside[plane]: every corner so far is beyond it */
+	bool outside[6] = {true, true, true, true, true, true};
+	for (int t = 0; t < 2; t++) {
+		float m[16];
+		sl_m44_mul(m, ri->gs.x.m[t], o->world_to_camera);
+		for (int k = 0; k < 8; k++) {
+			float p[3] = {b[k & 1], b[2 + (k >> 1 & 1)], b[4 + (k >> 2)]}, q[3];
+			sl_xform_point(q, m, p);
+			double x = d * q[0], y = d * q[1], z = o->perspective ? q[2] : 1;
+			outside[0] &= x < w[0] * z;
+			outside[1] &= x > w[1] * z;
+			outside[2] &= y < w[2] * z;
+			outside[3] &= y > w[3] * z;
+			outside[4] &= q[2] < o->clip_near;
+			outside[5] &= q[2] > o->clip_far;
+		}
+	}
+	for (int k = 0; k < 6; k++)
+		if (outside[k])
+			return true;
+	return false;
 }

@@ -328,6 +328,8 @@ struct ri {
 	/* SolidBegin/SolidEnd (ri_csg.c): the world's CSG nodes, the open solids */
 	RL_VEC(struct reyes_csg_node) csg_nodes;
 	RL_VEC(struct ri_solid) csg_open;
+	/* ri_procedural.c: DelayedReadArchive left unread (out of view) in world unread_world */
+	uint32_t unread_archives, unread_world;
 };
 
 /* ---- ri.c: diagnostics ------------------------------------------------------------- */
@@ -547,9 +549,9 @@ uint32_t *reyes_ri_uint_values(struct ri *ri, const struct rib_value *v, const c
 bool reyes_ri_check_counts(struct ri *ri, const struct rib_request *r, const struct rib_value *v,
 			   const uint32_t *c, uint32_t min, const char *what, uint64_t *sum);
 bool reyes_ri_point_count(struct ri *ri, const struct rib_request *r, uint32_t *np);
-/* The primitive variables of @r (with "P"), sizes[class] items each. */
+/* The primitive variables of @r, sizes[class] items each; @points: "P" is required. */
 bool reyes_ri_prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t sizes[5],
-			struct reyes_prim *p);
+			bool points, struct reyes_prim *p);
 struct reyes_prim *reyes_ri_new_prim(struct ri *ri, enum reyes_prim_kind kind);
 /* Into the world, the object being defined, or the motion block. */
 void reyes_ri_emit_prim(struct ri *ri, const struct rib_request *r, struct reyes_prim *p);
@@ -599,5 +601,47 @@ bool reyes_ri_same_curves(const struct reyes_curves *a, const struct reyes_curve
  * its object space at both shutter times (what their ribbons and disks face).
  */
 void reyes_ri_face_camera(struct reyes_scene *sc);
+
+/* ---- ri_detail.c: for the primitives of their own files ------------------------------ */
+
+/**
+ * The raster area of the rectangle around bound @b (xmin xmax ymin ymax zmin
+ * zmax, in the space @m takes to camera space) clipped to the near plane, as
+ * Detail measures it; 0 when it is all behind the near plane.
+ */
+float reyes_ri_raster_area(const struct reyes_options *o, const float m[16], const float b[6]);
+
+/* ---- ri_blobby.c -------------------------------------------------------------------------- */
+
+/** Blobby: an implicit surface, polygonized to the shading rate where it is declared. */
+void reyes_ri_req_blobby(struct ri *ri, const struct rib_request *r);
+
+/* ---- ri.c: archives, for Procedural ------------------------------------------------------ */
+
+/**
+ * Read archive @name (found as ReadArchive finds it) in the current state;
+ * @what names the request in messages. False (reported at @r) when it
+ * cannot be found or read, nests too deeply or would read itself.
+ */
+bool reyes_ri_read_archive(struct ri *ri, const struct rib_request *r, const char *what,
+			   const char *name);
+/** Read @len bytes of RIB at @data, named @name in diagnostics, in the current state. */
+bool reyes_ri_read_buffer(struct ri *ri, const char *name, const char *data, size_t len);
+/** Is bound @b (object space under the current transformation) outside the view? */
+bool reyes_ri_bound_unseen(struct ri *ri, const float b[6]);
+
+/* ---- ri_procedural.c ---------------------------------------------------------------------- */
+
+/** Procedural: DelayedReadArchive and RunProgram; DynamicLoad is refused. */
+void reyes_ri_req_procedural(struct ri *ri, const struct rib_request *r);
+/** A light @l was declared in the world at @r: warned about if it reads a shadow map
+    that archives left unread (out of view) before it should have cast into. */
+void reyes_ri_procedural_light(struct ri *ri, const struct rib_request *r,
+			       const struct reyes_light *l);
+
+/* ---- ri_geometry.c ------------------------------------------------------------------------ */
+
+/** Geometry: "teapot", the Newell teapot; other names are warned about. */
+void reyes_ri_req_geometry(struct ri *ri, const struct rib_request *r);
 
 #endif

@@ -116,7 +116,7 @@ void reyes_ri_req_nu_patch(struct ri *ri, const struct rib_request *r)
 		FAIL(ri, r->loc, "NuPatch is too large");
 	uint32_t sizes[5] = {1, (uint32_t)(nsu * nsv), (uint32_t)((nsu + 1) * (nsv + 1)), np,
 			     (uint32_t)(4 * nsu * nsv)};
-	if (reyes_ri_prim_vars(ri, r, sizes, p))
+	if (reyes_ri_prim_vars(ri, r, sizes, true, p))
 		reyes_ri_emit_prim(ri, r, p);
 }
 

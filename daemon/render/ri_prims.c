@@ -1301,15 +1301,15 @@ bool reyes_ri_point_count(struct ri *ri, const struct rib_request *r, uint32_t *
 	return point_count(ri, r, false, np);
 }
 
-bool reyes_ri_prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t sizes[5],
-			struct reyes_prim *p)
-{
-	return prim_vars(ri, r, sizes, true, p);
-}
-
 struct reyes_prim *reyes_ri_new_prim(struct ri *ri, enum reyes_prim_kind kind)
 {
 	return new_prim(ri, kind);
+}
+
+bool reyes_ri_prim_vars(struct ri *ri, const struct rib_request *r, const uint32_t sizes[5],
+			bool points, struct reyes_prim *p)
+{
+	return prim_vars(ri, r, sizes, points, p);
 }
 
 void reyes_ri_emit_prim(struct ri *ri, const struct rib_request *r, struct reyes_prim *p)

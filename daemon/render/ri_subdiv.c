@@ -267,7 +267,7 @@ void reyes_ri_req_subdivision_mesh(struct ri *ri, const struct rib_request *r)
 	p->subdiv = sd;
 	p->npoints = np;
 	uint32_t sizes[5] = {1, sd->nfaces, np, np, (uint32_t)corners};
-	if (!reyes_ri_prim_vars(ri, r, sizes, p))
+	if (!reyes_ri_prim_vars(ri, r, sizes, true, p))
 		return;
 	const struct reyes_primvar *P = reyes_prim_var(p, "P");
 	for (size_t i = 0; i < 3 * (size_t)np; i++)

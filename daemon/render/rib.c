@@ -58,6 +58,7 @@ enum {
  *   n number         i integer          s string
  *   h handle: an integer or a string
  *   a [numbers]      I [integers]       m [16 numbers]
+ *   S [strings] (possibly empty)
  *   b basis: a string (a named basis) or [16 numbers]
  */
 struct reqdef {
@@ -167,6 +168,9 @@ static const struct reqdef reqdefs[] = {
 	{"TrimCurve", "ncurves:I order:I knot:a min:a max:a n:I u:a v:a w:a", 0},
 	{"Curves", "type:s nvertices:I wrap:s", TAKES_PARAMS | PRIMITIVE},
 	{"Points", "", TAKES_PARAMS | PRIMITIVE},
+	{"Blobby", "nleaf:i code:I floats:a strings:S", TAKES_PARAMS | PRIMITIVE},
+	{"Geometry", "type:s", TAKES_PARAMS | PRIMITIVE},
+	{"Procedural", "procname:s args:S bound:a", PRIMITIVE},
 };
 
 /*
@@ -175,11 +179,11 @@ static const struct reqdef reqdefs[] = {
  * misspelt names.
  */
 static const char *const unsupported[] = {
-	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord", "Blobby",
+	"AreaLightSource", "ArchiveBegin", "ArchiveEnd", "ArchiveRecord",
 	"Bound", "Camera", "ClippingPlane", "ColorSamples", "Deformation",
-	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "Geometry", "IfBegin",
+	"DisplayChannel", "Else", "ElseIf", "ErrorHandler", "IfBegin",
 	"IfEnd", "MakeBrickMap", "MakeBump", "Perspective",
-	"Procedural", "Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
+	"Resource", "ResourceBegin", "ResourceEnd", "ScopedCoordinateSystem",
 	"Shader", "System",
 };
 
@@ -925,6 +929,7 @@ static const char *kind_desc(char kind)
 	case 'h': return "an integer or a string";
 	case 'a': return "an array of numbers";
 	case 'I': return "an array of integers";
+	case 'S': return "an array of strings";
 	case 'm': return "an array of 16 numbers";
 	case 'b': return "a basis name or an array of 16 numbers";
 	}
@@ -1031,7 +1036,7 @@ static bool parse_arg(struct rib_reader *r, const struct reqdef *def, const stru
 	uint32_t line = r->tok_line;
 	size_t index;
 	/* Handles and bases may be strings as well. */
-	if (t == T_STR && (a->kind == 's' || a->kind == 'h' || a->kind == 'b')) {
+	if (t == T_STR && (a->kind == 's' || a->kind == 'h' || a->kind == 'b' || a->kind == 'S')) {
 		if (!keep_string(r, &index))
 			return false;
 		advance(r);
@@ -1060,6 +1065,25 @@ static bool parse_arg(struct rib_reader *r, const struct reqdef *def, const stru
 			return false;
 		advance(r);
 		return push_arg(r, RIB_NUMBER, 1, index, line);
+	case 'S': {
+		if (t != T_LBRACK)
+			return arg_mismatch(r, def, a);
+		struct pvalue v;
+		if (!parse_array(r, &v))
+			return false;
+		if (v.type != RIB_STRINGS && v.n) {
+			error_at(r, v.line, "%s expects %s for '%s', got an array of numbers",
+				 def->name, kind_desc(a->kind), a->name);
+			return false;
+		}
+		if (v.type != RIB_STRINGS) {
+			/* an empty array: of strings */
+			v.type = RIB_STRINGS;
+			v.start = r->strofs.len;
+		}
+		rl_vec_push(r->pargs, v);
+		return true;
+	}
 	case 'a':
 	case 'b':
 	case 'I':

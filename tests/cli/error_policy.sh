@@ -20,9 +20,7 @@ identical() {
 # ---- every unsupported request of RiSpec 3.2: one warning each, the rest renders ----
 requests="10:ColorSamples 12:ClippingPlane 14:ErrorHandler
 15:Perspective 19:AreaLightSource 21:Resource 22:Shader 23:DisplayChannel 24:Bound
-25:Deformation 26:ArchiveRecord 27:ScopedCoordinateSystem 28:MakeBump
-40:Blobby
-41:Procedural 42:Geometry"
+25:Deformation 26:ArchiveRecord 27:ScopedCoordinateSystem 28:MakeBump"
 nrequests=$(echo $requests | wc -w)
 
 run "sphere alone" bash -c "cd '$work' && '$relight' render sphere.rib"

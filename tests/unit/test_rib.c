@@ -617,7 +617,7 @@ static void test_unhandled(void)
 		"Foo 1 2 \"x\" [3]\nWorldBegin\n"
 		"WorldBgin\nworldend \"a\" [\"b\" 1]\nVersion 3\n"
 		"Deformation \"twist\" \"angle\" [0 0 0 1]\nWorldEnd\n"
-		"Geometry \"teapot\" \"background\" [0 0 0]\n";
+		"MakeBump \"teapot\" \"background\" [0 0 0]\n";
 	struct rl_strbuf b = {0};
 	int nerr = -1;
 	CHECK(rib_read_buffer("t.rib", text, strlen(text), NULL, unhandled_fn, &b, &nerr));
@@ -629,7 +629,7 @@ static void test_unhandled(void)
 				     "Version@5 unknown 0 0 version\n"
 				     "Deformation@6 unsupported 0 0 -\n"
 				     "WorldEnd@7 known 0 0 -\n"
-				     "Geometry@8 unsupported 0 0 -\n");
+				     "MakeBump@8 unsupported 0 0 -\n");
 	rl_strbuf_finish(&b);
 
 	/* A primitive whose arguments are wrong goes by name, marked malformed,
@@ -651,7 +651,7 @@ static void test_unhandled(void)
 	rl_strbuf_finish(&m);
 	rl_strbuf_finish(&b);
 	/* A lexical error in their arguments is still an error. */
-	struct run *r = run_text("Geometry \"bg\" [1 nan 1]\nWorldBegin\n");
+	struct run *r = run_text("MakeBump \"bg\" [1 nan 1]\nWorldBegin\n");
 	CHECK(!r->ok);
 	CHECK_STR(r->diag, "t.rib:1: error: 'nan' is not a finite number\n");
 	CHECK_STR(r->out, "WorldBegin@2\n");
