@@ -634,3 +634,158 @@ FrameEnd
 """ % dict(cam=look_at((0, 1.6, -2.2), (0, 1.0, 5)),
            slide_place=place((-3, 3.5, 0), (-0.5, 1.2, 6.5)))
 write("examples/textured_lights/textured_lights.rib", textured)
+
+# ---- geometry: every production primitive in one shot, shadows included ----
+def grass(rng, n, x0, z0, radius):
+    """A tuft of n tapered cubic b-spline blades around (x0, 0, z0)."""
+    counts, P, w = [], [], []
+    for i in range(n):
+        a, r = 2 * math.pi * rng(), radius * math.sqrt(rng())
+        x, z = x0 + r * math.cos(a), z0 + r * math.sin(a)
+        h = 0.35 + 0.3 * rng()
+        lean = (0.25 * (rng() - 0.5), 0.25 * (rng() - 0.5))
+        counts.append(5)
+        for k in range(5):
+            f = k / 4
+            P += [x + lean[0] * f * f, h * f, z + lean[1] * f * f]
+        w += [0.012, 0.009, 0.005]
+    return ('Curves "cubic" [%s] "nonperiodic" "P" [%s] "width" [%s]'
+            % (" ".join(map(str, counts)), " ".join("%.4g" % v for v in P),
+               " ".join("%g" % v for v in w)))
+
+def circle_trim(cx, cy, r, ccw):
+    """A TrimCurve loop: the rational quadratic circle of 9 points (order 3)."""
+    k = "0 0 0 .25 .25 .5 .5 .75 .75 1 1 1"
+    s2 = math.sqrt(0.5)
+    pts = [(1, 0, 1), (s2, s2, s2), (0, 1, 1), (-s2, s2, s2), (-1, 0, 1), (-s2, -s2, s2),
+           (0, -1, 1), (s2, -s2, s2), (1, 0, 1)]
+    if not ccw:
+        pts = [(x, -y, w) for x, y, w in pts]
+    u = " ".join("%.9g" % ((cx * w + r * x)) for x, y, w in pts)
+    v = " ".join("%.9g" % ((cy * w + r * y)) for x, y, w in pts)
+    ws = " ".join("%.9g" % w for x, y, w in pts)
+    return k, u, v, ws
+
+def geometry_world(rng):
+    ko, uo, vo, wo = circle_trim(0.5, 0.5, 0.45, True)
+    ki, ui, vi, wi = circle_trim(0.5, 0.5, 0.2, False)
+    trim = ('TrimCurve [1 1] [3 3] [%s %s] [0 0] [1 1] [9 9]\n          [%s %s]\n          [%s %s]\n'
+            '          [%s %s]' % (ko, ki, uo, ui, vo, vi, wo, wi))
+    return """    AttributeBegin
+      Color [0.75 0.75 0.7]
+      %(floor)s
+    AttributeEnd
+    AttributeBegin
+      # A Catmull-Clark cube, one edge creased
+      Color [0.85 0.55 0.3]
+      Translate -1.5 0.55 3.2
+      Rotate 25 0 1 0
+      Scale 0.5 0.5 0.5
+      SubdivisionMesh "catmull-clark" [4 4 4 4 4 4]
+        [0 1 3 2  2 3 5 4  4 5 7 6  6 7 1 0  1 7 5 3  6 0 2 4]
+        ["crease" "interpolateboundary"] [2 1  0 0] [2 3] [4]
+        "P" [-1 -1 1  1 -1 1  -1 1 1  1 1 1  -1 1 -1  1 1 -1  -1 -1 -1  1 -1 -1]
+    AttributeEnd
+    AttributeBegin
+      # A sphere with a bite: CSG difference; the cut shows the biter's colour
+      Translate 0 0.6 3.6
+      SolidBegin "difference"
+        SolidBegin "primitive"
+          Color [0.3 0.5 0.9]
+          Sphere 0.6 -0.6 0.6 360
+        SolidEnd
+        SolidBegin "primitive"
+          Color [0.95 0.85 0.4]
+          Translate -0.3 0.25 -0.45
+          Sphere 0.35 -0.35 0.35 360
+        SolidEnd
+      SolidEnd
+    AttributeEnd
+    AttributeBegin
+      # A trimmed NuPatch: an annulus standing on the floor
+      Color [0.8 0.2 0.25]
+      Translate 1.9 0.75 4.3
+      Rotate -25 0 1 0
+      %(trim)s
+      NuPatch 2 2 [0 0 1 1] 0 1 2 2 [0 0 1 1] 0 1 "P" [-0.75 -0.75 0  0.75 -0.75 0  -0.75 0.75 0  0.75 0.75 0]
+    AttributeEnd
+    AttributeBegin
+      # Blobby: two ellipsoids and a segment, added
+      Color [0.4 0.8 0.4]
+      Translate 1.05 0.28 2.3
+      Scale 0.55 0.55 0.55
+      Blobby 3 [1001 0 1001 16 1002 32 0 3 0 1 2]
+        [1.2 0 0 0  0 1.2 0 0  0 0 1.2 0  -0.3 0 0 1
+         1 0 0 0  0 1 0 0  0 0 1 0  0.3 0.15 0 1
+         0 0 -0.4  0 0 0.4  0.5
+         1 0 0 0  0 1 0 0  0 0 1 0  0.05 -0.2 0 1] [""]
+    AttributeEnd
+    AttributeBegin
+      # The teapot, read when its bound is needed
+      Color [0.9 0.9 0.85]
+      Translate -0.75 0 2.2
+      Rotate -90 1 0 0
+      Rotate 30 0 0 1
+      Scale 0.17 0.17 0.17
+      Procedural "DelayedReadArchive" ["teapot.rib"] [-3 3.5 -2 2 0 3.2]
+    AttributeEnd
+    AttributeBegin
+      # Grass and seeds: Curves and Points
+      Color [0.45 0.7 0.25]
+      Basis "b-spline" 1 "b-spline" 1
+      %(grass)s
+      Color [0.95 0.9 0.6]
+      Opacity [0.7 0.7 0.7]
+      Points "P" [%(seeds)s] "constantwidth" [0.05]
+    AttributeEnd""" % dict(floor=quad(0, 6), trim=trim, grass=grass(rng, 160, 0.15, 1.7, 0.35),
+                          seeds=" ".join("%.3f" % v for i in range(12) for v in
+                                         (0.15 + 0.8 * (rng() - 0.5), 0.55 + 0.35 * rng(),
+                                          1.7 + 0.6 * (rng() - 0.5))))
+
+geometry_from, geometry_to = (3.5, 5.5, -0.5), (0, 0.3, 2.8)
+geometry_scene = """##RenderMan RIB
+# Every production primitive in one shot: a Catmull-Clark subdivision cube with a crease,
+# a sphere with a bite taken out (CSG difference), a trimmed NuPatch, a Blobby, the teapot
+# through a DelayedReadArchive, and grass and seeds (Curves, Points), all casting a
+# shadow-mapped spot light's shadow. 320x180 at 4x4 samples.
+version 3.04
+FrameBegin 1
+  Format 512 512 1
+  PixelSamples 1 1
+  PixelFilter "box" 1 1
+  Hider "hidden" "depthfilter" "midpoint"
+  Projection "perspective" "fov" %(fov)g
+  Display "key.z" "zfile" "z"
+  %(light_cam)s
+  WorldBegin
+    ShadingRate 4
+    Surface "constant"
+%(world)s
+  WorldEnd
+FrameEnd
+MakeShadow "key.z" "key.shd"
+FrameBegin 2
+  Format 320 180 1
+  PixelSamples 4 4
+  Projection "perspective" "fov" 40
+  Display "geometry.exr" "file" "rgba"
+  %(cam)s
+  WorldBegin
+    LightSource "ambientlight" 1 "intensity" 0.08
+    LightSource "shadowspot" 2 "intensity" 45 "from" [%(kf)s] "to" [%(kt)s]
+        "coneangle" 0.5 "conedeltaangle" 0.08 "shadowname" "key.shd"
+        "samples" 16 "blur" 0.004
+    LightSource "pointlight" 3 "intensity" 5 "from" [-3 3 0] "lightcolor" [0.5 0.6 0.9]
+    Surface "plastic" "Kd" 0.7 "Ks" 0.35 "roughness" 0.1
+%(world)s
+  WorldEnd
+FrameEnd
+"""
+write("examples/geometry/geometry.rib", geometry_scene % dict(
+    fov=2 * math.degrees(0.5) + 6, light_cam=look_at(geometry_from, geometry_to),
+    cam=look_at((0, 1.7, -0.8), (0, 0.5, 3)), world=geometry_world(lcg(20)),
+    kf="%g %g %g" % geometry_from, kt="%g %g %g" % geometry_to))
+write("examples/geometry/teapot.rib", """##RenderMan RIB
+# The archive examples/geometry/geometry.rib reads through a DelayedReadArchive.
+Geometry "teapot"
+""")
