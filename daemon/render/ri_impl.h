@@ -644,4 +644,28 @@ void reyes_ri_procedural_light(struct ri *ri, const struct rib_request *r,
 /** Geometry: "teapot", the Newell teapot; other names are warned about. */
 void reyes_ri_req_geometry(struct ri *ri, const struct rib_request *r);
 
+/* ---- ri_options.c: options (the camera, the image, displays, the hider, Option) ------ */
+
+/** The options at the start of a read (RISpec's defaults). */
+void reyes_ri_options_init(struct ri *ri, struct optstate *s);
+
+/** May an option be given here (outside the world)? Reported if not. */
+bool reyes_ri_option_ok(struct ri *ri, const struct rib_request *r);
+
+void reyes_ri_req_format(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_frame_aspect(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_screen_window(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_crop_window(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_projection(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_clipping(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_shutter(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_depth_of_field(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_pixel_samples(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_pixel_filter(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_exposure(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_quantize(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_display(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_hider(struct ri *ri, const struct rib_request *r);
+void reyes_ri_req_option(struct ri *ri, const struct rib_request *r);
+
 #endif
