@@ -727,7 +727,7 @@ def geometry_world(rng):
       Rotate -90 1 0 0
       Rotate 30 0 0 1
       Scale 0.17 0.17 0.17
-      Procedural "DelayedReadArchive" ["teapot.rib"] [-3 3.5 -2 2 0 3.2]
+      Procedural "DelayedReadArchive" ["archives/teapot.rib"] [-3 3.5 -2 2 0 3.2]
     AttributeEnd
     AttributeBegin
       # Grass and seeds: Curves and Points
@@ -785,7 +785,7 @@ write("examples/geometry/geometry.rib", geometry_scene % dict(
     fov=2 * math.degrees(0.5) + 6, light_cam=look_at(geometry_from, geometry_to),
     cam=look_at((0, 1.7, -0.8), (0, 0.5, 3)), world=geometry_world(lcg(20)),
     kf="%g %g %g" % geometry_from, kt="%g %g %g" % geometry_to))
-write("examples/geometry/teapot.rib", """##RenderMan RIB
+write("examples/geometry/archives/teapot.rib", """##RenderMan RIB
 # The archive examples/geometry/geometry.rib reads through a DelayedReadArchive.
 Geometry "teapot"
 """)

@@ -13,7 +13,7 @@ source "$(dirname "$0")/lib.sh"
 # under AddressSanitizer on a loaded machine.
 limit=${RELIGHT_CLI_TIMEOUT:-300}
 
-cp "$source_dir/examples/geometry/"*.rib "$work/"
+cp -r "$source_dir/examples/geometry/"* "$work/"
 sets="--set 2.intensity=30 --set 2.lightcolor=1,0.8,0.6 --set 3.from=-1,4,1 --set 3.intensity=8"
 
 run "render" bash -c "cd '$work' && '$relight' render -q -o plain.exr geometry.rib"
