@@ -38,8 +38,9 @@ struct result {
 };
 
 static bool count_grid(void *user, const struct reyes_prim *prim, const float *P, uint32_t nu,
-		       uint32_t nv, const uint8_t *keep)
+		       uint32_t nv, const uint8_t *keep, const float *Os)
 {
+	(void)Os;
 	(void)keep;
 	(void)prim;
 	(void)P;

@@ -175,7 +175,7 @@ static bool render_mesh(const struct mesh *m, const float w2c[16], const float w
 {
 	char err[256];
 	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(ctx, m->P, m->npoints, m->quads,
-								   m->object, m->nquads, err,
+								   m->object, NULL, m->nquads, err,
 								   sizeof(err));
 	if (!g) {
 		fprintf(stderr, "geometry: %s\n", err);
@@ -316,7 +316,7 @@ static void test_two_squares(void)
 	 * scratch are reused). */
 	char err[256];
 	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(ctx, m.P, m.npoints, m.quads,
-								   m.object, m.nquads, err,
+								   m.object, NULL, m.nquads, err,
 								   sizeof(err));
 	CHECK(g != NULL);
 	struct gpu_buffer *buf = gpu_buffer_create(ctx, 32 * 32 * sizeof(float), NULL);
@@ -507,7 +507,7 @@ static void test_garbage(void)
 
 	/* Nothing at all, and no points. */
 	char err[256];
-	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(ctx, NULL, 0, NULL, NULL, 0, err,
+	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(ctx, NULL, 0, NULL, NULL, NULL, 0, err,
 								   sizeof(err));
 	CHECK(g != NULL);
 	struct gpu_buffer *buf = gpu_buffer_create(ctx, 8 * 8 * sizeof(float), NULL);
@@ -520,8 +520,8 @@ static void test_garbage(void)
 	gpu_shadow_geometry_destroy(NULL);
 	CHECK(gpu_shadow_geometry_bytes(NULL) == 0);
 	uint32_t q4[4] = { 0, 0, 0, 0 };
-	CHECK(!gpu_shadow_geometry_create(ctx, NULL, 1, q4, q4, 1, err, sizeof(err)));
-	CHECK(!gpu_shadow_geometry_create(NULL, NULL, 0, NULL, NULL, 0, NULL, 0));
+	CHECK(!gpu_shadow_geometry_create(ctx, NULL, 1, q4, q4, NULL, 1, err, sizeof(err)));
+	CHECK(!gpu_shadow_geometry_create(NULL, NULL, 0, NULL, NULL, NULL, 0, NULL, 0));
 }
 
 /* ---- (b) against the renderer ---- */
@@ -649,7 +649,7 @@ static double compare_with_map(const struct bake_shadow_geometry *geo,
 	char err[256];
 	double t0 = now();
 	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(ctx, geo->P, geo->npoints,
-								   geo->quads, geo->object,
+								   geo->quads, geo->object, geo->opacity,
 								   geo->nquads, err, sizeof(err));
 	double t_create = now() - t0;
 	if (!g) {
