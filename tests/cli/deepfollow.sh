@@ -101,6 +101,7 @@ compare "GPU preview, maps following, vs render of the moved pass" moved.exr gpu
 # two regions of the receiver (world x0 x1 z0 z1 at y = 0, seen by the view
 # camera at (0, 3.5, 0), fov 80 on 96x96, looking down, z up the image).
 transmittance() {
+	what="transmittance: $1"
 	python3 - "$source_dir/tests/cli/deepfollow/exr.py" "$@" <<'PY'
 import importlib.util, math, sys
 spec = importlib.util.spec_from_file_location("exr", sys.argv[1])
