@@ -1073,7 +1073,7 @@ static bool render_deep(struct gpu_shot *s, struct light *L, uint32_t i, const f
 	if (!b) {
 		if (!L->warned_deep)
 			fprintf(s->diag, "relight: warning: light '%s': its deep shadow map '%s' "
-				"is not rendered again on the GPU (%s): the baked map is used as it "
+				"is not rendered again on the GPU: %s; the baked map is used as it "
 				"is\n", L->name, L->map_names[i], err);
 		L->warned_deep = true;
 		return true;

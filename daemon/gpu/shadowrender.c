@@ -862,8 +862,8 @@ struct gpu_buffer *gpu_shadow_geometry_render_deep(struct gpu_ctx *ctx,
 		return NULL;
 	}
 	if (!g->opacity) {
-		snprintf(err, errlen, "the shadow geometry has no opacity (a shot baked before it "
-			 "was recorded)");
+		snprintf(err, errlen, "the shot's shadow geometry has no opacity (it was baked "
+			 "before relight recorded it)");
 		return NULL;
 	}
 	uint32_t ns = o->samples;
