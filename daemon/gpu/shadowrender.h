@@ -116,10 +116,12 @@ bool gpu_shadow_geometry_has_opacity(const struct gpu_shadow_geometry *g);
  * gpu_shadow_geometry_render does a depth map (same matrices, coverage and
  * depth, same objects left out), at @o->samples x @o->samples points per
  * texel (the centres of a grid of cells, where the hider jitters inside
- * them). Each texel's function is the renderer's: the mean over its samples
- * of the product of (1 - opacity) of the micropolygons in front of a depth,
- * a sample stopping at the point where it became @o->threshold opaque,
- * compressed with the same runs and bound (reyes_deep_build_pixel). The
+ * them; the 65536-centre cap on a micropolygon counts these sample points,
+ * 4096 texels at 4 x 4). Each texel's function is the renderer's: the mean
+ * over its samples of the product of (1 - opacity) of the micropolygons in
+ * front of a depth, a sample stopping at the point where it became
+ * @o->threshold opaque, compressed with the same runs and bound
+ * (reyes_deep_build_pixel). The
  * result is a new buffer of @ctx in the layout the runtime uploads deep maps
  * in (gpu/shadowmap.c: width * height + 1 offsets as floats, then the (z, T)
  * nodes), which the caller owns. Passes: count each texel's hits, prefix
