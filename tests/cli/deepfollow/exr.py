@@ -1,6 +1,6 @@
 # Read the pixels of a scanline OpenEXR file (uncompressed or ZIP, as relight
 # writes them) without the OpenEXR module, for the tests that look at regions.
-import struct, sys, zlib
+import struct, zlib
 
 def read(path):
 	"""A scanline OpenEXR of no or ZIP compression: {channel: rows of values, top first}."""
