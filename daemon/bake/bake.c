@@ -562,6 +562,7 @@ static char *metadata(const struct bake *b, const struct bake_stats *st, const c
 			cJSON_AddItemToArray(ls, cJSON_CreateNumber(b->casters.data[i]));
 		cJSON_AddStringToObject(sg, "points", "shadow.points");
 		cJSON_AddStringToObject(sg, "quads", "shadow.quads");
+		cJSON_AddStringToObject(sg, "opacity", "shadow.quads.opacity");
 		cJSON_AddStringToObject(sg, "space", "world");
 	}
 	cJSON *tl = cJSON_AddObjectToObject(root, "tiling");
@@ -1138,8 +1139,8 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 		struct shot_table *qs = &tabs[ng + BAKE_LEVELS + 1];
 		qs->name = "shadow.quads";
 		qs->nrows = sg->nquads;
-		qs->nchannels = 5;
-		qs->channels = rl_xcalloc(5, sizeof(*qs->channels));
+		qs->nchannels = 6;
+		qs->channels = rl_xcalloc(6, sizeof(*qs->channels));
 		for (int c = 0; c < 4; c++) {
 			uint32_t *v = rl_xmalloc((sg->nquads + 1) * sizeof(uint32_t));
 			for (uint64_t i = 0; i < sg->nquads; i++)
@@ -1151,6 +1152,11 @@ static bool write_shot(struct bake *b, const char *path, struct bake_stats *st)
 		uint32_t *obj = rl_xmalloc((sg->nquads + 1) * sizeof(uint32_t));
 		memcpy(obj, sg->object, sg->nquads * sizeof(uint32_t));
 		qs->channels[4] = (struct shot_channel){ rl_xstrdup("object"), SHOT_UINT, obj };
+		/* what a deep shadow map the GPU renders sees of each micropolygon */
+		float *op = rl_xmalloc((sg->nquads + 1) * sizeof(float));
+		if (sg->nquads)
+			memcpy(op, sg->opacity, sg->nquads * sizeof(float));
+		qs->channels[5] = (struct shot_channel){ rl_xstrdup("opacity"), SHOT_FLOAT, op };
 		st->shadow_points = sg->npoints;
 		st->shadow_quads = sg->nquads;
 	}

@@ -100,12 +100,78 @@ bool bake_light_casts_shadows(const struct reyes_scene *scene, uint32_t light)
 struct gather {
 	struct bake_shadow_geometry *out;
 	float c2w[16];               /* camera to world */
-	uint64_t cap_points, cap_quads, cap_object;
+	uint64_t cap_points, cap_quads, cap_object, cap_opacity;
 	uint64_t bad_points;         /* not finite: their micropolygons are left out */
 	FILE *diag;
 	const struct reyes_csg *csg;
 	bool warned_csg;
+	const struct sl_program **warned_oi;  /* surfaces already warned about */
+	uint32_t nwarned_oi;
 };
+
+/* ---- opacity ---- */
+
+enum oi_source { OI_OPAQUE, OI_OS, OI_COMPUTED };
+
+/*
+ * Where surface @prog's Oi comes from: never set (the renderer leaves it
+ * 1), set only by copies of Os, or computed. *@at: the first instruction
+ * that computes it.
+ */
+static enum oi_source oi_source(const struct sl_program *prog, const struct sl_insn **at)
+{
+	int32_t oi = prog->global_reg[SL_GLOBAL_OI], os = prog->global_reg[SL_GLOBAL_OS];
+	bool set = false;
+	for (uint32_t i = 0; i < prog->ncode; i++) {
+		const struct sl_insn *in = &prog->code[i];
+		if (oi < 0 || in->dst != oi)
+			continue;
+		set = true;
+		if (in->op != SL_OP_MOV || in->nargs != 1 || os < 0 || in->args[0] != os) {
+			*at = in;
+			return OI_COMPUTED;
+		}
+	}
+	return set ? OI_OS : OI_OPAQUE;
+}
+
+/* Say once per shader that its computed Oi is not what the deep maps see. */
+static void warn_oi(struct gather *gt, const struct sl_program *prog, const struct sl_insn *at)
+{
+	for (uint32_t i = 0; i < gt->nwarned_oi; i++)
+		if (gt->warned_oi[i] == prog)
+			return;
+	const struct sl_program **w = realloc(gt->warned_oi, (gt->nwarned_oi + 1) * sizeof(*w));
+	if (!w)
+		return;
+	gt->warned_oi = w;
+	w[gt->nwarned_oi++] = prog;
+	const char *file = prog->files && at->loc.file < prog->nfiles && prog->files[at->loc.file]
+				   ? prog->files[at->loc.file] : prog->name;
+	fprintf(gt->diag, "%s:%u: warning: surface '%s' computes Oi: the shadow geometry takes "
+		"its Os instead (the surface is not shaded for it), so a deep shadow map the GPU "
+		"renders from it sees Os where the renderer's sees this Oi\n", file, at->loc.line,
+		prog->name);
+}
+
+/*
+ * Micropolygon (i, j)'s opacity, grey: @Os per point (planar, @n points) or
+ * the attribute's, averaged over its corners @v.
+ */
+static float quad_opacity(const struct reyes_prim *prim, enum oi_source src, const float *Os,
+			  uint64_t n, const uint32_t v[4])
+{
+	const float *a = prim->attrs->Os;
+	if (src == OI_OPAQUE || prim->attrs->matte)
+		return 1.0f;
+	double sum = 0.0;
+	if (!Os)
+		sum = 4.0 * ((double)a[0] + a[1] + a[2]) / 3.0;
+	for (int c = 0; Os && c < 4; c++)
+		sum += ((double)Os[v[c]] + Os[n + v[c]] + Os[2 * n + v[c]]) / 3.0;
+	float o = (float)(sum / 4.0);
+	return o > 0.0f ? (o < 1.0f ? o : 1.0f) : 0.0f;
+}
 
 /*
  * Solids: which micropolygon of a solid bounds it is a question of the
@@ -155,12 +221,18 @@ static bool reserve(void **data, uint64_t *cap, uint64_t need, size_t elem)
 }
 
 static bool on_grid(void *user, const struct reyes_prim *prim, const float *P, uint32_t nu,
-		    uint32_t nv, const uint8_t *keep)
+		    uint32_t nv, const uint8_t *keep, const float *Os)
 {
 	struct gather *gt = user;
 	struct bake_shadow_geometry *o = gt->out;
 	if (nu < 2 || nv < 2 || !csg_casts(gt, prim))
 		return true;
+	/* no surface: the default one, which sets Oi = Os */
+	const struct sl_program *surf = prim->attrs->surface ? prim->attrs->surface->prog : NULL;
+	const struct sl_insn *at = NULL;
+	enum oi_source src = surf ? oi_source(surf, &at) : OI_OS;
+	if (src == OI_COMPUTED && !prim->attrs->matte)
+		warn_oi(gt, surf, at);
 	uint64_t n = (uint64_t)nu * nv, nq = (uint64_t)(nu - 1) * (nv - 1);
 	if (o->npoints + n > UINT32_MAX || o->ngrids == UINT32_MAX) {
 		fprintf(gt->diag, "relight: error: the shadow geometry would have more than %u "
@@ -169,7 +241,8 @@ static bool on_grid(void *user, const struct reyes_prim *prim, const float *P, u
 	}
 	if (!reserve((void **)&o->P, &gt->cap_points, o->npoints + n, 3 * sizeof(float)) ||
 	    !reserve((void **)&o->quads, &gt->cap_quads, o->nquads + nq, 4 * sizeof(uint32_t)) ||
-	    !reserve((void **)&o->object, &gt->cap_object, o->nquads + nq, sizeof(uint32_t))) {
+	    !reserve((void **)&o->object, &gt->cap_object, o->nquads + nq, sizeof(uint32_t)) ||
+	    !reserve((void **)&o->opacity, &gt->cap_opacity, o->nquads + nq, sizeof(float))) {
 		fprintf(gt->diag, "relight: error: out of memory for the shadow geometry (%llu "
 			"points)\n", (unsigned long long)(o->npoints + n));
 		return false;
@@ -192,6 +265,7 @@ static bool on_grid(void *user, const struct reyes_prim *prim, const float *P, u
 	}
 	uint32_t *q = o->quads + 4 * o->nquads;
 	uint32_t *obj = o->object + o->nquads;
+	float *op = o->opacity + o->nquads;
 	uint64_t kept = 0;
 	for (uint32_t j = 0; j + 1 < nv; j++)
 		for (uint32_t i = 0; i + 1 < nu; i++) {
@@ -205,6 +279,7 @@ static bool on_grid(void *user, const struct reyes_prim *prim, const float *P, u
 				continue;
 			for (int c = 0; c < 4; c++)
 				q[4 * kept + (uint64_t)c] = base + v[c];
+			op[kept] = quad_opacity(prim, src, Os, n, v);
 			obj[kept++] = prim->id;
 		}
 	for (uint64_t k = 0; k < n; k++)
@@ -241,6 +316,7 @@ bool bake_shadow_geometry(const struct reyes_scene *scene, float rate, FILE *dia
 		.grid = on_grid,
 	};
 	bool ok = reyes_dice(scene, &o);
+	free(gt.warned_oi);
 	if (gt.bad_points)
 		fprintf(diag, "relight: warning: %llu shadow geometry points were not finite; "
 			"their micropolygons are left out\n", (unsigned long long)gt.bad_points);
@@ -256,6 +332,8 @@ bool bake_shadow_geometry(const struct reyes_scene *scene, float rate, FILE *dia
 		out->quads = p;
 	if (out->nquads && (p = realloc(out->object, (size_t)out->nquads * sizeof(uint32_t))))
 		out->object = p;
+	if (out->nquads && (p = realloc(out->opacity, (size_t)out->nquads * sizeof(float))))
+		out->opacity = p;
 	return true;
 }
 
@@ -264,5 +342,6 @@ void bake_shadow_geometry_free(struct bake_shadow_geometry *g)
 	free(g->P);
 	free(g->quads);
 	free(g->object);
+	free(g->opacity);
 	memset(g, 0, sizeof(*g));
 }

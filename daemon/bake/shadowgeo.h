@@ -20,7 +20,7 @@
  * micropolygons. Quads are not oriented (their winding follows the
  * primitive's parameters, not its normal) and may be non-planar or
  * degenerate (at a sphere's poles). A point that came out non-finite is
- * stored as (0, 0, 0) and no micropolygon uses it. The three arrays are
+ * stored as (0, 0, 0) and no micropolygon uses it. The four arrays are
  * malloc'd and belong to the struct (bake_shadow_geometry_free).
  */
 struct bake_shadow_geometry {
@@ -29,6 +29,8 @@ struct bake_shadow_geometry {
 	uint32_t *quads;     /* 4 point indices per micropolygon, in grid order
 				(i, i+1, i+nu+1, i+nu) */
 	uint32_t *object;    /* per micropolygon: its primitive's id (reyes_prim.id) */
+	float *opacity;      /* per micropolygon: the opacity a deep shadow map sees, in
+				[0, 1] (see bake_shadow_geometry) */
 	uint64_t nquads;
 	uint32_t ngrids;
 };
@@ -51,7 +53,16 @@ bool bake_light_casts_shadows(const struct reyes_scene *scene, uint32_t light);
  * in the view; behind the eye or off the screen, in units of the size a
  * pixel has at its distance from the eye (no nearer than the near clipping
  * plane). Nothing is culled. Displacement shaders run; surfaces are not
- * shaded. Positions are taken at shutter open. One thread. False on
+ * shaded. Positions are taken at shutter open. One thread.
+ *
+ * Opacity: a micropolygon's is the grey (mean of the three channels, as
+ * the renderer's deep maps take Oi) of its surface's Oi: 1 for a matte
+ * primitive or a surface that never sets Oi (the renderer's default), the
+ * Opacity attribute or "Os" primitive variable (the mean of its four
+ * corners) for one that sets Oi = Os, as the library's surfaces do. A
+ * surface that computes Oi otherwise is not shaded for it: its Os is
+ * taken, and a warning names the shader's assignment (once per shader).
+ * False on
  * failure (a bad rate, out of memory, more than 2^32 - 1 points), reported
  * on @diag (NULL: stderr); @out is then empty.
  */

@@ -31,7 +31,7 @@ static void usage(FILE *out)
 		"               shaded_points, shading_samples, subpixel_samples,\n"
 		"               indirect_entries, channels {dynamic, varying, unique,\n"
 		"               half, float}, sample_rows, tiles, tile_size, shadow_points,\n"
-		"               shadow_quads, levels\n"
+		"               shadow_quads, shadow_bytes, shadow_opacity, levels\n"
 		"               [{block, samples, entries}], bytes {PART: N},\n"
 		"               total_bytes, format, specular_model (\"prman\" or\n"
 		"               \"rispec\": the highlight of specular() the shot was\n"
@@ -155,6 +155,16 @@ int cmd_info(int argc, char **argv)
 		total += b;
 	}
 	cJSON_AddNumberToObject(out, "total_bytes", total);
+	/* the shadow geometry: its two tables; the opacity deep maps need, or none
+	   (a shot baked before it was recorded) */
+	double shadow_bytes = 0;
+	for (uint32_t i = 0; f->part_bytes && i < f->ntables; i++)
+		if (!strncmp(f->tables[i].name, "shadow.", 7))
+			shadow_bytes += (double)f->part_bytes[i];
+	const cJSON *sg = cJSON_GetObjectItemCaseSensitive(meta, "shadow_geometry");
+	bool shadow_opacity = cJSON_IsString(cJSON_GetObjectItemCaseSensitive(sg, "opacity"));
+	cJSON_AddNumberToObject(out, "shadow_bytes", shadow_bytes);
+	cJSON_AddBoolToObject(out, "shadow_opacity", shadow_opacity);
 
 	if (json) {
 		char *s = cJSON_Print(out);
@@ -190,8 +200,11 @@ int cmd_info(int argc, char **argv)
 		else
 			printf("tiles: 1 (the whole frame)\n");
 		if (num(fig, "shadow_quads") > 0)
-			printf("shadow geometry: %.0f micropolygons, %.0f points\n",
-			       num(fig, "shadow_quads"), num(fig, "shadow_points"));
+			printf("shadow geometry: %.0f micropolygons, %.0f points, %s (%.0f bytes)\n",
+			       num(fig, "shadow_quads"), num(fig, "shadow_points"),
+			       shadow_opacity ? "with their opacity for deep maps"
+					      : "no opacity (deep maps are not rendered from it)",
+			       shadow_bytes);
 		printf("refinement levels:\n");
 		int k = 0;
 		cJSON_ArrayForEach(l, levels) {

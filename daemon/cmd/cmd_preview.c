@@ -9,6 +9,7 @@
 #include "graph.h"
 #include "bake/resolve.h"
 #include "runtime.h"
+#include "shadowrender.h"
 #include "png.h"
 #include "shotfile.h"
 #include "texture.h"
@@ -23,8 +24,8 @@
 static void usage(FILE *out)
 {
 	fprintf(out,
-		"usage: relight preview [--cpu] [--set LIGHT.PARAM=V[,V,V]]... [--level N|final]\n"
-		"                       [-o OUT.exr] [--json] SHOT.exr\n"
+		"usage: relight preview [--cpu] [--set LIGHT.PARAM=V[,V,V]]... [--follow LIGHT]...\n"
+		"                       [--level N|final] [-o OUT.exr] [--json] SHOT.exr\n"
 		"\n"
 		"Relight a shot file written by 'relight bake' and write the image.\n"
 		"\n"
@@ -56,6 +57,11 @@ static void usage(FILE *out)
 		"                       name: uberlight's slidename). Repeatable. LIGHT 'imager'\n"
 		"                       edits the shot's imager shader instead (RIB Imager),\n"
 		"                       which runs on the final pixels after the resolve\n"
+		"  --follow LIGHT       On the GPU, the light's shadow maps follow it: each is\n"
+		"                       rendered from the shot's shadow geometry from the\n"
+		"                       light's 'from' towards its 'to' (depth and deep maps\n"
+		"                       alike). Repeatable. With --cpu, a warning: the CPU\n"
+		"                       preview reads the maps as baked\n"
 		"  -o, --output FILE    The image (OpenEXR, RGBA float; default: SHOT with\n"
 		"                       .shot.exr replaced by .preview.exr). On the GPU, a\n"
 		"                       name ending in .png writes the runtime's 8-bit sRGB\n"
@@ -72,8 +78,12 @@ static void usage(FILE *out)
 		"                       programs_at_load and programs_by_edits (GPU programs\n"
 		"                       made before the edits and by them: an edit makes none),\n"
 		"                       texture_maps and texture_map_bytes (the texture and\n"
-		"                       environment maps the lights read, in GPU memory) and\n"
-		"                       graph (the computation graph's nodes and their runs)\n"
+		"                       environment maps the lights read, in GPU memory),\n"
+		"                       deep_maps_rendered and, of the last one, deep_hits,\n"
+		"                       deep_max_texel_hits, deep_nodes, deep_map_bytes and\n"
+		"                       deep_scratch_bytes (deep shadow maps rendered from the\n"
+		"                       shadow geometry) and graph (the computation graph's\n"
+		"                       nodes and their runs)\n"
 		"  -q, --quiet          No summary\n"
 		"  -h, --help           Show this help and exit\n"
 		"\n"
@@ -163,8 +173,8 @@ static bool write_gpu_image(struct gpu_shot *s, int level, const char *path, boo
 }
 
 static int preview_gpu(const char *shot, const char *output, int level,
-		       const struct resolve_edit *edits, size_t nedits, bool json, bool quiet,
-		       bool half)
+		       const struct resolve_edit *edits, size_t nedits, char *const *follow,
+		       size_t nfollow, bool json, bool quiet, bool half)
 {
 	char err[1024];
 	struct gpu_ctx *ctx = gpu_create(err, sizeof(err));
@@ -182,6 +192,12 @@ static int preview_gpu(const char *shot, const char *output, int level,
 	/* programs made (compiled, or read from the disk cache) before the edits */
 	unsigned hits0 = 0, built0 = 0, hits1 = 0, built1 = 0;
 	gpu_program_stats(ctx, &hits0, &built0);
+	for (size_t i = 0; ok && i < nfollow; i++) {
+		if (!gpu_shot_shadow_follow(s, follow[i], true, err, sizeof(err))) {
+			fprintf(stderr, "relight: error: --follow %s: %s\n", follow[i], err);
+			ok = false;
+		}
+	}
 	for (size_t i = 0; ok && i < nedits; i++) {
 		const struct resolve_edit *e = &edits[i];
 		bool is_string = e->nvalues == 0 && gpu_shot_param_is_string(s, e->light, e->param);
@@ -222,6 +238,12 @@ static int preview_gpu(const char *shot, const char *output, int level,
 		printf("], \"programs_at_load\": %u, \"programs_by_edits\": %u, \"texture_maps\": %u, "
 		       "\"texture_map_bytes\": %zu", hits0 + built0, hits1 + built1 - hits0 - built0,
 		       nmaps, tbytes);
+		struct gpu_deep_stats ds;
+		uint32_t ndeep = gpu_shot_deep_stats(s, &ds);
+		printf(", \"deep_maps_rendered\": %u, \"deep_hits\": %llu, \"deep_max_texel_hits\": "
+		       "%u, \"deep_nodes\": %llu, \"deep_map_bytes\": %zu, \"deep_scratch_bytes\": %zu",
+		       ndeep, (unsigned long long)ds.hits, ds.max_hits,
+		       (unsigned long long)ds.nodes, ds.bytes, ds.scratch_bytes);
 		printf(", \"output\": \"%s\", \"graph\": ", output);
 		graph_print_json(gpu_shot_graph(s), stdout);
 		printf("}\n");
@@ -245,13 +267,16 @@ int cmd_preview(int argc, char **argv)
 	enum { MAX_EDITS = 256, MAX_EDIT_LEN = 256 };
 	struct resolve_edit edits[MAX_EDITS];
 	char copies[MAX_EDITS][MAX_EDIT_LEN];
-	size_t nedits = 0;
+	size_t nedits = 0, nfollow = 0;
+	enum { MAX_FOLLOW = 64 };
+	char *follow[MAX_FOLLOW];
 	const char *output = NULL;
 	static const struct option long_opts[] = {
 		{ "help", no_argument, NULL, 'h' },
 		{ "cpu", no_argument, NULL, 'c' },
 		{ "level", required_argument, NULL, 'l' },
 		{ "set", required_argument, NULL, 's' },
+		{ "follow", required_argument, NULL, 'f' },
 		{ "output", required_argument, NULL, 'o' },
 		{ "json", no_argument, NULL, 'j' },
 		{ "half", no_argument, NULL, 'H' },
@@ -294,6 +319,11 @@ int cmd_preview(int argc, char **argv)
 			}
 			nedits++;
 			break;
+		case 'f':
+			if (nfollow == MAX_FOLLOW)
+				return usage_error("at most %d --follow lights", MAX_FOLLOW);
+			follow[nfollow++] = optarg;
+			break;
 		case 'o':
 			output = optarg;
 			break;
@@ -326,12 +356,17 @@ int cmd_preview(int argc, char **argv)
 	}
 	uint64_t unread = reyes_tex_unread_maps();
 	if (!cpu) {
-		int rc = output ? preview_gpu(shot, output, level, edits, nedits, json, quiet, half)
+		int rc = output ? preview_gpu(shot, output, level, edits, nedits, follow, nfollow, json,
+					      quiet, half)
 				: CMD_FAILED;
 		rc = check_maps(rc, unread, output);
 		free(out_alloc);
 		return rc;
 	}
+	/* the CPU resolver reads the maps the bake named, depth and deep alike */
+	for (size_t i = 0; i < nfollow; i++)
+		fprintf(stderr, "relight: warning: --follow %s: the CPU preview reads the light's "
+			"shadow maps as baked; they follow the light on the GPU only\n", follow[i]);
 	struct resolve_opts ro = { .diag = stderr, .texture_path = ".", .level = level,
 				   .edits = edits, .nedits = nedits };
 	struct resolve_result res;

@@ -27,6 +27,7 @@
 
 #include "arena.h"
 #include "clock.h"
+#include "deepshadow.h"
 #include "graph.h"
 #include "imagerpass.h"
 #include "lighthost.h"
@@ -101,7 +102,7 @@ struct light {
 	uint32_t not_casting;      /* objects that do not */
 	uint32_t cast_version, rendered_version;
 	bool follow;               /* the maps' cameras follow the light's from and to */
-	bool warned_deep;          /* said that a deep map is not rendered again */
+	bool warned_deep;          /* said that a deep map cannot be rendered again */
 	float follow_key[6];       /* the from and to the maps were last rendered for */
 	/* per shadow site, while some object does not cast: the map rendered
 	 * from the shadow geometry without them, and its depths */
@@ -188,6 +189,8 @@ struct gpu_shot {
 	struct gpu_ifb *ifb;
 	uint32_t *pick;            /* per pixel: the object of its heaviest sample (UINT32_MAX: none) */
 	struct gpu_shadow_geometry *shadow_geo;  /* NULL: the shot has none */
+	struct gpu_deep_stats deep_stats;        /* of the last deep map rendered or tried */
+	uint32_t deep_maps_rendered;
 	uint64_t level_entries[NBANDS];
 	struct gpu_buffer *base, *cache, *colors, *scratch, *zero;
 	struct gpu_buffer *rgba[NBANDS], *px8;
@@ -1045,6 +1048,45 @@ static bool follow_camera(const float from[3], const float to[3], float w2c[16],
 	return true;
 }
 
+/*
+ * Light @L's deep map at site @i rendered again from the shadow geometry
+ * with camera @w2c, @w2ndc (gpu/shadowrender.h), into L->rmaps[i]. Where
+ * it cannot be (a shot without opacity in its shadow geometry, a map over
+ * the GPU's bounds), the baked map is kept, said once per light. False on
+ * a GPU failure.
+ */
+static bool render_deep(struct gpu_shot *s, struct light *L, uint32_t i, const float w2c[16],
+			const float w2ndc[16], uint32_t w, uint32_t h)
+{
+	const struct gpu_deep_opts o = {
+		.samples = GPU_DEEP_SAMPLES,
+		.error = REYES_DEEP_DEFAULT_ERROR,
+		.threshold = GPU_DEEP_THRESHOLD,
+	};
+	char err[256];
+	struct gpu_deep_stats st;
+	struct gpu_buffer *b = gpu_shadow_geometry_render_deep(s->ctx, s->shadow_geo, w2c, w2ndc,
+							       w, h, &o, L->cast_cpu,
+							       s->nobjects, &st, err, sizeof(err));
+	s->deep_stats = st;
+	s->deep_maps_rendered += b != NULL;
+	if (!b) {
+		if (!L->warned_deep)
+			fprintf(s->diag, "relight: warning: light '%s': its deep shadow map '%s' "
+				"is not rendered again on the GPU: %s; the baked map is used as it "
+				"is\n", L->name, L->map_names[i], err);
+		L->warned_deep = true;
+		return true;
+	}
+	L->rmaps[i] = gpu_shadow_map_with_deep(L->maps[i], b, st.bytes);
+	if (!L->rmaps[i]) {
+		gpu_buffer_destroy(b);
+		return fail(s, "out of memory");
+	}
+	gpu_shadow_map_set_camera(L->rmaps[i], w2c, w2ndc);
+	return true;
+}
+
 /* A light's shadow-map node: the maps its kernels' shadow() sites read. */
 static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 {
@@ -1104,15 +1146,6 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 			L->rmaps[i] = NULL;
 			if (!L->maps[i] || !s->shadow_geo)
 				continue;
-			if (gpu_shadow_map_is_deep(L->maps[i])) {
-				/* the shadow geometry has no opacity: keep the baked map */
-				if (!L->warned_deep)
-					fprintf(s->diag, "relight: warning: light '%s': its deep shadow "
-						"map '%s' is not rendered again on the GPU: the baked map "
-						"is used as it is\n", L->name, L->map_names[i]);
-				L->warned_deep = true;
-				continue;
-			}
 			uint32_t w, h;
 			float w2c[16], w2ndc[16];
 			gpu_shadow_map_size(L->maps[i], &w, &h);
@@ -1120,6 +1153,11 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 			if (L->follow && !follow_camera(key, key + 3, w2c, w2ndc))
 				return fail(s, "light '%s': its shadow camera cannot look from its "
 					    "'from' to its 'to'", L->name);
+			if (gpu_shadow_map_is_deep(L->maps[i])) {
+				if (!render_deep(s, L, i, w2c, w2ndc, w, h))
+					return false;
+				continue;
+			}
 			if (!L->rdepth[i])
 				L->rdepth[i] = gpu_buffer_create(s->ctx, (size_t)w * h * sizeof(float), NULL);
 			if (!L->rdepth[i] ||
@@ -1625,7 +1663,9 @@ static uint32_t json_uint(const cJSON *o, const char *key)
 /*
  * The shadow geometry (shadow.points, shadow.quads), for maps rendered when
  * casting is edited per object. Without it (or without the GPU's support)
- * casting cannot be edited; nothing else changes.
+ * casting cannot be edited; nothing else changes. A shot baked before the
+ * micropolygons' opacity was recorded (no "opacity" channel) renders depth
+ * maps from it but not deep ones.
  */
 static void load_shadow_geometry(struct gpu_shot *s, const struct shot_file *f)
 {
@@ -1635,6 +1675,7 @@ static void load_shadow_geometry(struct gpu_shot *s, const struct shot_file *f)
 		return;
 	const float *xyz[3] = { 0 };
 	const uint32_t *v[4] = { 0 }, *obj = NULL;
+	const float *opacity = NULL;
 	for (uint32_t c = 0; c < pt->nchannels; c++)
 		for (int a = 0; a < 3; a++)
 			if (!strcmp(pt->channels[c].name, (const char *[]){ "X", "Y", "Z" }[a]) &&
@@ -1642,6 +1683,8 @@ static void load_shadow_geometry(struct gpu_shot *s, const struct shot_file *f)
 				xyz[a] = pt->channels[c].data;
 	for (uint32_t c = 0; c < qt->nchannels; c++) {
 		const struct shot_channel *ch = &qt->channels[c];
+		if (ch->type != SHOT_UINT && !strcmp(ch->name, "opacity"))
+			opacity = ch->data;
 		if (ch->type != SHOT_UINT)
 			continue;
 		if (!strcmp(ch->name, "object"))
@@ -1664,10 +1707,10 @@ static void load_shadow_geometry(struct gpu_shot *s, const struct shot_file *f)
 		for (int a = 0; a < 4; a++)
 			q[i * 4 + (uint64_t)a] = v[a][i];
 	char err[512];
-	size_t need = (pt->nrows * 3 + qt->nrows * 5) * sizeof(float);
+	size_t need = (pt->nrows * 3 + qt->nrows * (opacity ? 6 : 5)) * sizeof(float);
 	if (s->bytes + need <= s->budget) {
-		s->shadow_geo = gpu_shadow_geometry_create(s->ctx, P, pt->nrows, q, obj, qt->nrows, err,
-							   sizeof(err));
+		s->shadow_geo = gpu_shadow_geometry_create(s->ctx, P, pt->nrows, q, obj, opacity,
+							   qt->nrows, err, sizeof(err));
 		if (!s->shadow_geo)
 			fprintf(s->diag, "relight: warning: %s: %s; casting cannot be edited\n",
 				s->path, err);
@@ -2188,8 +2231,16 @@ size_t gpu_shot_bytes(const struct gpu_shot *s)
 	size_t b = s->bytes + gpu_texmaps_bytes(s->texmaps);
 	for (uint32_t i = 0; i < s->nlights; i++)
 		for (uint32_t m = 0; m < s->lights[i].nmaps; m++)
-			b += s->lights[i].maps[m] ? gpu_shadow_map_bytes(s->lights[i].maps[m]) : 0;
+			b += gpu_shadow_map_bytes(s->lights[i].maps[m]) +
+			     gpu_shadow_map_bytes(s->lights[i].rmaps ? s->lights[i].rmaps[m] : NULL);
 	return b;
+}
+
+uint32_t gpu_shot_deep_stats(const struct gpu_shot *s, struct gpu_deep_stats *last)
+{
+	if (last)
+		*last = s->deep_stats;
+	return s->deep_maps_rendered;
 }
 
 uint64_t gpu_shot_samples(const struct gpu_shot *s)

@@ -212,6 +212,16 @@ bool gpu_shot_cast_shadows(struct gpu_shot *s, const char *light, uint32_t objec
 bool gpu_shot_shadow_follow(struct gpu_shot *s, const char *light, bool follow, char *err,
 			    size_t errlen);
 
+struct gpu_deep_stats;
+
+/**
+ * How many deep shadow maps were rendered from the shadow geometry since
+ * the shot was opened (lights whose maps follow them, or whose casting is
+ * edited); @last (may be NULL) gets what the last one took or, when it
+ * failed, how far it got (gpu/shadowrender.h).
+ */
+uint32_t gpu_shot_deep_stats(const struct gpu_shot *s, struct gpu_deep_stats *last);
+
 /**
  * Set surface parameter @param, baked as editable (`relight bake
  * --dynamic-surface`), to @values on every object whose surface shader is

@@ -131,6 +131,22 @@ struct gpu_shadow_map *gpu_shadow_map_with_depth(const struct gpu_shadow_map *li
 	return m;
 }
 
+struct gpu_shadow_map *gpu_shadow_map_with_deep(const struct gpu_shadow_map *like,
+						struct gpu_buffer *deep, size_t bytes)
+{
+	if (!like || !deep)
+		return NULL;
+	struct gpu_shadow_map *m = malloc(sizeof(*m));
+	if (!m)
+		return NULL;
+	*m = *like;
+	m->depth = deep;
+	m->deep = true;
+	m->bytes = bytes;
+	m->borrowed = false;
+	return m;
+}
+
 void gpu_shadow_map_set_camera(struct gpu_shadow_map *m, const float world_to_camera[16],
 			       const float world_to_ndc[16])
 {

@@ -28,7 +28,7 @@ void gpu_shadow_map_destroy(struct gpu_shadow_map *m);
 /** Bytes the map takes in GPU memory. */
 size_t gpu_shadow_map_bytes(const struct gpu_shadow_map *m);
 
-/** A deep shadow map (render/deepshadow.h): rendering it again from geometry is not done. */
+/** A deep shadow map (render/deepshadow.h), not a depth map. */
 bool gpu_shadow_map_is_deep(const struct gpu_shadow_map *m);
 
 /** The map's size in texels. */
@@ -42,6 +42,15 @@ void gpu_shadow_map_size(const struct gpu_shadow_map *m, uint32_t *width, uint32
  */
 struct gpu_shadow_map *gpu_shadow_map_with_depth(const struct gpu_shadow_map *like,
 						 struct gpu_buffer *depth);
+
+/**
+ * A deep map with the camera, size and bias of @like and the offsets and
+ * nodes of @deep (@bytes of them, as gpu_shadow_geometry_render_deep writes
+ * them), which the map takes over (destroyed with it). NULL when out of
+ * memory (@deep is then still the caller's).
+ */
+struct gpu_shadow_map *gpu_shadow_map_with_deep(const struct gpu_shadow_map *like,
+						struct gpu_buffer *deep, size_t bytes);
 
 /** Give @m another camera (a map made by gpu_shadow_map_with_depth, re-rendered). */
 void gpu_shadow_map_set_camera(struct gpu_shadow_map *m, const float world_to_camera[16],

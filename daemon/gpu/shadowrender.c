@@ -88,25 +88,30 @@ struct gpu_shadow_geometry {
 	struct gpu_buffer *quads;    /* RGBA32F: 4 biased point indices per micropolygon */
 	struct gpu_buffer *slots;    /* R32F: biased slot per micropolygon */
 	struct gpu_buffer *casts;    /* R32F: flag per slot */
+	struct gpu_buffer *opacity;  /* R32F: opacity per micropolygon, or NULL */
 	struct gpu_buffer *scratch;  /* midpoint: 2 uint per pixel (second depth, count) */
 	size_t scratch_bytes;
 	size_t bytes;                /* GPU memory held, scratch included */
 	struct gpu_program *clear, *raster, *resolve;
+	struct gpu_program *deep_clear, *deep_raster, *deep_build, *deep_pack;
 };
 
 /* ---- shaders ---- */
 
-#define SHADER_PRELUDE \
+#define PRELUDE_BASE \
 	"#version 430 core\n" \
 	"layout(local_size_x = 64) in;\n" \
 	"uniform uint u_count;\n" \
 	"const uint EMPTY = 0x7149f2cau; /* 1e30 */\n" \
-	"layout(std430, binding = 0) buffer Depth { uint depth_bits[]; };\n" \
-	"layout(std430, binding = 1) buffer Scratch { uint scratch[]; };\n" \
 	"uint invocation()\n" \
 	"{\n" \
 	"	return gl_GlobalInvocationID.x + gl_GlobalInvocationID.y * gl_NumWorkGroups.x * 64u;\n" \
 	"}\n"
+
+#define SHADER_PRELUDE \
+	PRELUDE_BASE \
+	"layout(std430, binding = 0) buffer Depth { uint depth_bits[]; };\n" \
+	"layout(std430, binding = 1) buffer Scratch { uint scratch[]; };\n"
 
 /* Every pixel empty; for the midpoint filter no second depth and no count. */
 static const char clear_src[] =
@@ -125,143 +130,160 @@ static const char clear_src[] =
 	"}\n";
 
 /*
+ * What the depth and deep rasterizers share: the micropolygon's projection
+ * and edge setup (RASTER_SETUP, in main, returning when it covers nothing),
+ * then per centre c the hit test (RASTER_HIT: continues unless it hits, with
+ * its depth in z). Centres are those of a grid u_ns times finer than the map
+ * on each axis (1 for depth maps), at integer + 0.5 in that grid's units.
+ */
+#define RASTER_HELPERS \
+	"uniform mat4 u_to_ndc;\n" \
+	"uniform vec4 u_zrow;\n" \
+	"uniform int u_width;\n" \
+	"uniform int u_height;\n" \
+	"uniform int u_ns;\n" \
+	"uniform int u_pass;\n" \
+	"layout(binding = 0) uniform samplerBuffer u_points;\n" \
+	"layout(binding = 1) uniform samplerBuffer u_quads;\n" \
+	"layout(binding = 2) uniform samplerBuffer u_slots;\n" \
+	"layout(binding = 3) uniform samplerBuffer u_casts;\n" \
+	"const uint IDX_BIAS = 0x00800000u;\n" \
+	"const float MAX_PIXELS = 65536.0;\n" \
+	"bool finite(float v)\n" \
+	"{\n" \
+	"	return (floatBitsToUint(v) & 0x7f800000u) != 0x7f800000u;\n" \
+	"}\n" \
+	"/* An edge from its lexicographically smaller endpoint a, direction d; s = -1\n" \
+	"   when that reverses the edge as given. */\n" \
+	"struct Edge {\n" \
+	"	vec2 a;\n" \
+	"	vec2 d;\n" \
+	"	float s;\n" \
+	"};\n" \
+	"Edge edge(vec2 p, vec2 q)\n" \
+	"{\n" \
+	"	bool fwd = p.x < q.x || (p.x == q.x && p.y <= q.y);\n" \
+	"	Edge e;\n" \
+	"	e.a = fwd ? p : q;\n" \
+	"	precise vec2 d = fwd ? q - p : p - q;\n" \
+	"	e.d = d;\n" \
+	"	e.s = fwd ? 1.0 : -1.0;\n" \
+	"	return e;\n" \
+	"}\n" \
+	"float edge_eval(Edge e, vec2 c)\n" \
+	"{\n" \
+	"	precise float v = e.d.x * (c.y - e.a.y) - e.d.y * (c.x - e.a.x);\n" \
+	"	return v;\n" \
+	"}\n" \
+	"/* Does a centre moved right, then down, cross edge direction k * d inward? */\n" \
+	"bool owns(Edge e, float k)\n" \
+	"{\n" \
+	"	float A = k * e.d.x, B = k * e.d.y;\n" \
+	"	return B < 0.0 || (B == 0.0 && A > 0.0);\n" \
+	"}\n" \
+	"bool inside(vec3 v, bvec3 own)\n" \
+	"{\n" \
+	"	return (v.x > 0.0 || (v.x == 0.0 && own.x)) && (v.y > 0.0 || (v.y == 0.0 && own.y)) &&\n" \
+	"	       (v.z > 0.0 || (v.z == 0.0 && own.z));\n" \
+	"}\n"
+
+#define RASTER_SETUP \
+	"	uint i = invocation();\n" \
+	"	if (i >= u_count)\n" \
+	"		return;\n" \
+	"	int slot = int(floatBitsToUint(texelFetch(u_slots, int(i)).r) - IDX_BIAS);\n" \
+	"	if (texelFetch(u_casts, slot).r == 0.0)\n" \
+	"		return;\n" \
+	"	uvec4 vi = floatBitsToUint(texelFetch(u_quads, int(i))) - uvec4(IDX_BIAS);\n" \
+	"	vec2 s[4];\n" \
+	"	float q[4], r[4];\n" \
+	"	vec2 size = vec2(float(u_width * u_ns), float(u_height * u_ns));\n" \
+	"	for (int k = 0; k < 4; k++) {\n" \
+	"		int b = int(vi[k] * 3u);\n" \
+	"		vec4 P = vec4(texelFetch(u_points, b).r, texelFetch(u_points, b + 1).r,\n" \
+	"			      texelFetch(u_points, b + 2).r, 1.0);\n" \
+	"		precise vec4 h = u_to_ndc * P;\n" \
+	"		if (!(h.w > 0.0))\n" \
+	"			return;\n" \
+	"		precise vec2 sp = h.xy / h.w * size;\n" \
+	"		s[k] = sp;\n" \
+	"		r[k] = 1.0 / h.w;\n" \
+	"		q[k] = dot(u_zrow, P) * r[k];\n" \
+	"		if (!finite(s[k].x) || !finite(s[k].y) || !finite(r[k]) || !finite(q[k]))\n" \
+	"			return;\n" \
+	"	}\n" \
+	"	vec2 lo = min(min(s[0], s[1]), min(s[2], s[3]));\n" \
+	"	vec2 hi = max(max(s[0], s[1]), max(s[2], s[3]));\n" \
+	"	/* Centres x + 0.5 in [lo, hi], within the map (clamped before any int). */\n" \
+	"	vec2 f0 = max(ceil(lo - 0.5), vec2(0.0));\n" \
+	"	vec2 f1 = min(floor(hi - 0.5), size - 1.0);\n" \
+	"	if (!(f0.x <= f1.x && f0.y <= f1.y))\n" \
+	"		return;\n" \
+	"	if ((f1.x - f0.x + 1.0) * (f1.y - f0.y + 1.0) > MAX_PIXELS)\n" \
+	"		return;\n" \
+	"	Edge e0 = edge(s[0], s[1]), e1 = edge(s[1], s[2]), e2 = edge(s[2], s[3]),\n" \
+	"	     e3 = edge(s[3], s[0]), e4 = edge(s[0], s[2]);\n" \
+	"	/* Triangle (v0, v1, v2): edges opposite its corners v1->v2, v2->v0 (the\n" \
+	"	   diagonal reversed), v0->v1; orientation from v0->v1 at v2. */\n" \
+	"	float a0 = e0.s * edge_eval(e0, s[2]);\n" \
+	"	bool ok0 = a0 != 0.0 && finite(a0);\n" \
+	"	float o0 = a0 > 0.0 ? 1.0 : -1.0;\n" \
+	"	vec3 k0 = o0 * vec3(e1.s, -e4.s, e0.s);\n" \
+	"	bvec3 own0 = bvec3(owns(e1, k0.x), owns(e4, k0.y), owns(e0, k0.z));\n" \
+	"	/* Triangle (v0, v2, v3): v2->v3, v3->v0, v0->v2; orientation from v0->v2 at v3. */\n" \
+	"	float a1 = e4.s * edge_eval(e4, s[3]);\n" \
+	"	bool ok1 = a1 != 0.0 && finite(a1);\n" \
+	"	float o1 = a1 > 0.0 ? 1.0 : -1.0;\n" \
+	"	vec3 k1 = o1 * vec3(e2.s, e3.s, e4.s);\n" \
+	"	bvec3 own1 = bvec3(owns(e2, k1.x), owns(e3, k1.y), owns(e4, k1.z));\n" \
+	"	if (!ok0 && !ok1)\n" \
+	"		return;\n" \
+	"	vec3 q0 = vec3(q[0], q[1], q[2]), r0 = vec3(r[0], r[1], r[2]);\n" \
+	"	vec3 q1 = vec3(q[0], q[2], q[3]), r1 = vec3(r[0], r[2], r[3]);\n" \
+	"	int x0 = int(f0.x), x1 = int(f1.x), y0 = int(f0.y), y1 = int(f1.y);\n"
+
+#define RASTER_HIT \
+	"			float d4 = edge_eval(e4, c);\n" \
+	"			float num = 0.0, den = 0.0;\n" \
+	"			bool hit = false;\n" \
+	"			if (ok0) {\n" \
+	"				vec3 w = k0 * vec3(edge_eval(e1, c), d4, edge_eval(e0, c));\n" \
+	"				if (inside(w, own0)) {\n" \
+	"					num = dot(w, q0);\n" \
+	"					den = dot(w, r0);\n" \
+	"					hit = true;\n" \
+	"				}\n" \
+	"			}\n" \
+	"			if (!hit && ok1) {\n" \
+	"				vec3 w = k1 * vec3(edge_eval(e2, c), edge_eval(e3, c), d4);\n" \
+	"				if (inside(w, own1)) {\n" \
+	"					num = dot(w, q1);\n" \
+	"					den = dot(w, r1);\n" \
+	"					hit = true;\n" \
+	"				}\n" \
+	"			}\n" \
+	"			if (!hit || !(den > 0.0))\n" \
+	"				continue;\n" \
+	"			float z = num / den;\n" \
+	"			uint bits = floatBitsToUint(z);\n" \
+	"			if (!(z > 0.0) || bits >= EMPTY)\n" \
+	"				continue;\n"
+
+/*
  * One invocation per micropolygon. Pass 0 keeps the nearest hit per pixel;
  * pass 1 (midpoint) counts the hits at exactly that depth and keeps the
  * nearest behind it.
  */
 static const char raster_src[] =
 	SHADER_PRELUDE
-	"uniform mat4 u_to_ndc;\n"
-	"uniform vec4 u_zrow;\n"
-	"uniform int u_width;\n"
-	"uniform int u_height;\n"
-	"uniform int u_pass;\n"
-	"layout(binding = 0) uniform samplerBuffer u_points;\n"
-	"layout(binding = 1) uniform samplerBuffer u_quads;\n"
-	"layout(binding = 2) uniform samplerBuffer u_slots;\n"
-	"layout(binding = 3) uniform samplerBuffer u_casts;\n"
-	"const uint IDX_BIAS = 0x00800000u;\n"
-	"const float MAX_PIXELS = 65536.0;\n"
-	"bool finite(float v)\n"
-	"{\n"
-	"	return (floatBitsToUint(v) & 0x7f800000u) != 0x7f800000u;\n"
-	"}\n"
-	"/* An edge from its lexicographically smaller endpoint a, direction d; s = -1\n"
-	"   when that reverses the edge as given. */\n"
-	"struct Edge {\n"
-	"	vec2 a;\n"
-	"	vec2 d;\n"
-	"	float s;\n"
-	"};\n"
-	"Edge edge(vec2 p, vec2 q)\n"
-	"{\n"
-	"	bool fwd = p.x < q.x || (p.x == q.x && p.y <= q.y);\n"
-	"	Edge e;\n"
-	"	e.a = fwd ? p : q;\n"
-	"	precise vec2 d = fwd ? q - p : p - q;\n"
-	"	e.d = d;\n"
-	"	e.s = fwd ? 1.0 : -1.0;\n"
-	"	return e;\n"
-	"}\n"
-	"float edge_eval(Edge e, vec2 c)\n"
-	"{\n"
-	"	precise float v = e.d.x * (c.y - e.a.y) - e.d.y * (c.x - e.a.x);\n"
-	"	return v;\n"
-	"}\n"
-	"/* Does a centre moved right, then down, cross edge direction k * d inward? */\n"
-	"bool owns(Edge e, float k)\n"
-	"{\n"
-	"	float A = k * e.d.x, B = k * e.d.y;\n"
-	"	return B < 0.0 || (B == 0.0 && A > 0.0);\n"
-	"}\n"
-	"bool inside(vec3 v, bvec3 own)\n"
-	"{\n"
-	"	return (v.x > 0.0 || (v.x == 0.0 && own.x)) && (v.y > 0.0 || (v.y == 0.0 && own.y)) &&\n"
-	"	       (v.z > 0.0 || (v.z == 0.0 && own.z));\n"
-	"}\n"
+	RASTER_HELPERS
 	"void main()\n"
 	"{\n"
-	"	uint i = invocation();\n"
-	"	if (i >= u_count)\n"
-	"		return;\n"
-	"	int slot = int(floatBitsToUint(texelFetch(u_slots, int(i)).r) - IDX_BIAS);\n"
-	"	if (texelFetch(u_casts, slot).r == 0.0)\n"
-	"		return;\n"
-	"	uvec4 vi = floatBitsToUint(texelFetch(u_quads, int(i))) - uvec4(IDX_BIAS);\n"
-	"	vec2 s[4];\n"
-	"	float q[4], r[4];\n"
-	"	vec2 size = vec2(float(u_width), float(u_height));\n"
-	"	for (int k = 0; k < 4; k++) {\n"
-	"		int b = int(vi[k] * 3u);\n"
-	"		vec4 P = vec4(texelFetch(u_points, b).r, texelFetch(u_points, b + 1).r,\n"
-	"			      texelFetch(u_points, b + 2).r, 1.0);\n"
-	"		precise vec4 h = u_to_ndc * P;\n"
-	"		if (!(h.w > 0.0))\n"
-	"			return;\n"
-	"		precise vec2 sp = h.xy / h.w * size;\n"
-	"		s[k] = sp;\n"
-	"		r[k] = 1.0 / h.w;\n"
-	"		q[k] = dot(u_zrow, P) * r[k];\n"
-	"		if (!finite(s[k].x) || !finite(s[k].y) || !finite(r[k]) || !finite(q[k]))\n"
-	"			return;\n"
-	"	}\n"
-	"	vec2 lo = min(min(s[0], s[1]), min(s[2], s[3]));\n"
-	"	vec2 hi = max(max(s[0], s[1]), max(s[2], s[3]));\n"
-	"	/* Centres x + 0.5 in [lo, hi], within the map (clamped before any int). */\n"
-	"	vec2 f0 = max(ceil(lo - 0.5), vec2(0.0));\n"
-	"	vec2 f1 = min(floor(hi - 0.5), size - 1.0);\n"
-	"	if (!(f0.x <= f1.x && f0.y <= f1.y))\n"
-	"		return;\n"
-	"	if ((f1.x - f0.x + 1.0) * (f1.y - f0.y + 1.0) > MAX_PIXELS)\n"
-	"		return;\n"
-	"	Edge e0 = edge(s[0], s[1]), e1 = edge(s[1], s[2]), e2 = edge(s[2], s[3]),\n"
-	"	     e3 = edge(s[3], s[0]), e4 = edge(s[0], s[2]);\n"
-	"	/* Triangle (v0, v1, v2): edges opposite its corners v1->v2, v2->v0 (the\n"
-	"	   diagonal reversed), v0->v1; orientation from v0->v1 at v2. */\n"
-	"	float a0 = e0.s * edge_eval(e0, s[2]);\n"
-	"	bool ok0 = a0 != 0.0 && finite(a0);\n"
-	"	float o0 = a0 > 0.0 ? 1.0 : -1.0;\n"
-	"	vec3 k0 = o0 * vec3(e1.s, -e4.s, e0.s);\n"
-	"	bvec3 own0 = bvec3(owns(e1, k0.x), owns(e4, k0.y), owns(e0, k0.z));\n"
-	"	/* Triangle (v0, v2, v3): v2->v3, v3->v0, v0->v2; orientation from v0->v2 at v3. */\n"
-	"	float a1 = e4.s * edge_eval(e4, s[3]);\n"
-	"	bool ok1 = a1 != 0.0 && finite(a1);\n"
-	"	float o1 = a1 > 0.0 ? 1.0 : -1.0;\n"
-	"	vec3 k1 = o1 * vec3(e2.s, e3.s, e4.s);\n"
-	"	bvec3 own1 = bvec3(owns(e2, k1.x), owns(e3, k1.y), owns(e4, k1.z));\n"
-	"	if (!ok0 && !ok1)\n"
-	"		return;\n"
-	"	vec3 q0 = vec3(q[0], q[1], q[2]), r0 = vec3(r[0], r[1], r[2]);\n"
-	"	vec3 q1 = vec3(q[0], q[2], q[3]), r1 = vec3(r[0], r[2], r[3]);\n"
-	"	int x0 = int(f0.x), x1 = int(f1.x), y0 = int(f0.y), y1 = int(f1.y);\n"
+	RASTER_SETUP
 	"	for (int y = y0; y <= y1; y++) {\n"
 	"		for (int x = x0; x <= x1; x++) {\n"
 	"			vec2 c = vec2(float(x) + 0.5, float(y) + 0.5);\n"
-	"			float d4 = edge_eval(e4, c);\n"
-	"			float num = 0.0, den = 0.0;\n"
-	"			bool hit = false;\n"
-	"			if (ok0) {\n"
-	"				vec3 w = k0 * vec3(edge_eval(e1, c), d4, edge_eval(e0, c));\n"
-	"				if (inside(w, own0)) {\n"
-	"					num = dot(w, q0);\n"
-	"					den = dot(w, r0);\n"
-	"					hit = true;\n"
-	"				}\n"
-	"			}\n"
-	"			if (!hit && ok1) {\n"
-	"				vec3 w = k1 * vec3(edge_eval(e2, c), edge_eval(e3, c), d4);\n"
-	"				if (inside(w, own1)) {\n"
-	"					num = dot(w, q1);\n"
-	"					den = dot(w, r1);\n"
-	"					hit = true;\n"
-	"				}\n"
-	"			}\n"
-	"			if (!hit || !(den > 0.0))\n"
-	"				continue;\n"
-	"			float z = num / den;\n"
-	"			uint bits = floatBitsToUint(z);\n"
-	"			if (!(z > 0.0) || bits >= EMPTY)\n"
-	"				continue;\n"
+	RASTER_HIT
 	"			uint p = uint(y) * uint(u_width) + uint(x);\n"
 	"			if (u_pass == 0) {\n"
 	"				atomicMin(depth_bits[p], bits);\n"
@@ -298,6 +320,178 @@ static const char resolve_src[] =
 	"	depth_bits[p] = floatBitsToUint(0.5 * (uintBitsToFloat(first) + uintBitsToFloat(second)));\n"
 	"}\n";
 
+/*
+ * Deep maps. Hits are events (depth bits, opacity bits, sample index) in
+ * one list per texel, at [offsets[p], offsets[p + 1]) of the event buffer.
+ */
+#define DEEP_PRELUDE \
+	PRELUDE_BASE \
+	"layout(std430, binding = 0) buffer Count { uint count[]; };\n" \
+	"layout(std430, binding = 1) buffer Offsets { uint offsets[]; };\n" \
+	"layout(std430, binding = 2) buffer Events { uint events[]; };\n"
+
+static const char deep_clear_src[] =
+	DEEP_PRELUDE
+	"void main()\n"
+	"{\n"
+	"	uint p = invocation();\n"
+	"	if (p < u_count)\n"
+	"		count[p] = 0u;\n"
+	"}\n";
+
+/*
+ * One invocation per micropolygon, at u_ns x u_ns sample centres per texel
+ * (sample k = row * u_ns + column of its texel). Pass 0 counts each texel's
+ * hits; pass 1, with the counts cleared and the offsets their prefix sums,
+ * writes them. Both run the same arithmetic, so they find the same hits.
+ */
+static const char deep_raster_src[] =
+	DEEP_PRELUDE
+	RASTER_HELPERS
+	"layout(binding = 4) uniform samplerBuffer u_opacity;\n"
+	"void main()\n"
+	"{\n"
+	RASTER_SETUP
+	"	float opacity = min(texelFetch(u_opacity, int(i)).r, 1.0);\n"
+	"	if (!(opacity > 0.0))\n"
+	"		return;\n"
+	"	uint ns = uint(u_ns);\n"
+	"	for (int y = y0; y <= y1; y++) {\n"
+	"		for (int x = x0; x <= x1; x++) {\n"
+	"			vec2 c = vec2(float(x) + 0.5, float(y) + 0.5);\n"
+	RASTER_HIT
+	"			uint p = (uint(y) / ns) * uint(u_width) + uint(x) / ns;\n"
+	"			uint k = (uint(y) % ns) * ns + uint(x) % ns;\n"
+	"			uint at = atomicAdd(count[p], 1u);\n"
+	"			if (u_pass == 0)\n"
+	"				continue;\n"
+	"			at += offsets[p];\n"
+	"			if (at >= offsets[p + 1u])\n"
+	"				continue;\n"
+	"			events[3u * at] = bits;\n"
+	"			events[3u * at + 1u] = floatBitsToUint(opacity);\n"
+	"			events[3u * at + 2u] = k;\n"
+	"		}\n"
+	"	}\n"
+	"}\n";
+
+/*
+ * One invocation per texel: its events sorted by depth, then sample
+ * (insertion sort in place: lists are bounded, DEEP_MAX_TEXEL_HITS), then
+ * reyes_deep_build_pixel's walk (render/deepshadow.c): the mean over the
+ * texel's samples of each one's transmittance, a sample ignoring what lies
+ * behind the point where it became opaque (the hider's opacity threshold),
+ * compressed into runs whose drops add up to at most u_error. At most two
+ * nodes per event, at nodes[2 * offsets[p]] (pairs z, T); their count in
+ * count[p].
+ */
+static const char deep_build_src[] =
+	DEEP_PRELUDE
+	"layout(std430, binding = 3) buffer Nodes { float nodes[]; };\n"
+	"uniform int u_samples;\n"
+	"uniform float u_error;\n"
+	"uniform float u_threshold;\n"
+	"const int DEEP_MAX_SAMPLES = 64;\n"
+	"uint base, n;\n"
+	"void put(float z, double t)\n"
+	"{\n"
+	"	float tf = float(clamp(t, 0.0lf, 1.0lf));\n"
+	"	uint at = 2u * (2u * base + n);\n"
+	"	if (n > 0u && nodes[at - 2u] == z && nodes[at - 1u] == tf)\n"
+	"		return;\n"
+	"	if (n >= 2u && nodes[at - 2u] == z && nodes[at - 4u] == z) {\n"
+	"		nodes[at - 1u] = tf;\n"
+	"		return;\n"
+	"	}\n"
+	"	nodes[at] = z;\n"
+	"	nodes[at + 1u] = tf;\n"
+	"	n++;\n"
+	"}\n"
+	"void main()\n"
+	"{\n"
+	"	uint p = invocation();\n"
+	"	if (p >= u_count)\n"
+	"		return;\n"
+	"	base = offsets[p];\n"
+	"	uint m = offsets[p + 1u] - base;\n"
+	"	n = 0u;\n"
+	"	for (uint i = 1u; i < m; i++) {\n"
+	"		uvec3 e = uvec3(events[3u * (base + i)], events[3u * (base + i) + 1u],\n"
+	"				events[3u * (base + i) + 2u]);\n"
+	"		float ze = uintBitsToFloat(e.x);\n"
+	"		uint j = i;\n"
+	"		for (; j > 0u; j--) {\n"
+	"			uint q = base + j - 1u;\n"
+	"			float zq = uintBitsToFloat(events[3u * q]);\n"
+	"			if (!(zq > ze || (zq == ze && events[3u * q + 2u] > e.z)))\n"
+	"				break;\n"
+	"			events[3u * (q + 1u)] = events[3u * q];\n"
+	"			events[3u * (q + 1u) + 1u] = events[3u * q + 1u];\n"
+	"			events[3u * (q + 1u) + 2u] = events[3u * q + 2u];\n"
+	"		}\n"
+	"		events[3u * (base + j)] = e.x;\n"
+	"		events[3u * (base + j) + 1u] = e.y;\n"
+	"		events[3u * (base + j) + 2u] = e.z;\n"
+	"	}\n"
+	"	double ts[DEEP_MAX_SAMPLES];\n"
+	"	for (int k = 0; k < u_samples; k++)\n"
+	"		ts[k] = 1.0lf;\n"
+	"	double err = double(u_error), inv = 1.0lf / double(u_samples);\n"
+	"	double opaque = 1.0lf - double(u_threshold);\n"
+	"	double v = 1.0lf, va = 1.0lf, drop = 0.0lf;\n"
+	"	float za = 0.0, zl = 0.0;\n"
+	"	bool open = false;\n"
+	"	for (uint i = 0u; i < m; i++) {\n"
+	"		uint at = 3u * (base + i);\n"
+	"		float z = uintBitsToFloat(events[at]);\n"
+	"		double o = double(uintBitsToFloat(events[at + 1u]));\n"
+	"		uint k = events[at + 2u];\n"
+	"		/* the hider keeps no hit behind a sample's opaque point */\n"
+	"		if (ts[k] <= opaque)\n"
+	"			continue;\n"
+	"		double d = ts[k] * o * inv;\n"
+	"		ts[k] *= 1.0lf - o;\n"
+	"		if (open && drop + d > err) {\n"
+	"			put(za, va);\n"
+	"			put(zl, v);\n"
+	"			open = false;\n"
+	"		}\n"
+	"		if (!open) {\n"
+	"			open = true;\n"
+	"			za = z;\n"
+	"			va = v;\n"
+	"			drop = 0.0lf;\n"
+	"		}\n"
+	"		v -= d;\n"
+	"		drop += d;\n"
+	"		zl = z;\n"
+	"	}\n"
+	"	if (open) {\n"
+	"		put(za, va);\n"
+	"		put(zl, v);\n"
+	"	}\n"
+	"	count[p] = n;\n"
+	"}\n";
+
+/*
+ * The map buffer as the runtime reads deep maps (shadowmap.c): u_count + 1
+ * offsets as floats, written by the caller, then each texel's nodes moved
+ * there from where the build left them.
+ */
+static const char deep_pack_src[] =
+	DEEP_PRELUDE
+	"layout(std430, binding = 3) buffer Nodes { float nodes[]; };\n"
+	"layout(std430, binding = 4) buffer Map { float map[]; };\n"
+	"void main()\n"
+	"{\n"
+	"	uint p = invocation();\n"
+	"	if (p >= u_count)\n"
+	"		return;\n"
+	"	uint from = 4u * offsets[p], to = u_count + 1u + 2u * uint(map[p]);\n"
+	"	for (uint k = 0u; k < 2u * count[p]; k++)\n"
+	"		map[to + k] = nodes[from + k];\n"
+	"}\n";
+
 /* ---- geometry ---- */
 
 static int cmp_u32(const void *a, const void *b)
@@ -330,8 +524,8 @@ static struct gpu_buffer *upload(struct gpu_shadow_geometry *g, size_t bytes, co
 
 struct gpu_shadow_geometry *gpu_shadow_geometry_create(struct gpu_ctx *ctx, const float *P,
 						       uint64_t npoints, const uint32_t *quads,
-						       const uint32_t *object, uint64_t nquads,
-						       char *err, size_t errlen)
+						       const uint32_t *object, const float *opacity,
+						       uint64_t nquads, char *err, size_t errlen)
 {
 	char dummy[1];
 	if (!err || !errlen) {
@@ -368,7 +562,8 @@ struct gpu_shadow_geometry *gpu_shadow_geometry_create(struct gpu_ctx *ctx, cons
 	uint32_t *idx = malloc((size_t)(kept ? kept : 1) * 4 * sizeof(uint32_t));
 	uint32_t *slot = malloc((size_t)(kept ? kept : 1) * sizeof(uint32_t));
 	uint32_t *runs = malloc((size_t)(kept ? kept : 1) * sizeof(uint32_t));
-	if (!g || !idx || !slot || !runs) {
+	float *op = opacity ? malloc((size_t)(kept ? kept : 1) * sizeof(float)) : NULL;
+	if (!g || !idx || !slot || !runs || (opacity && !op)) {
 		snprintf(err, errlen, "shadow geometry: out of memory");
 		goto fail;
 	}
@@ -387,6 +582,8 @@ struct gpu_shadow_geometry *gpu_shadow_geometry_create(struct gpu_ctx *ctx, cons
 		for (int c = 0; c < 4; c++)
 			idx[4 * k + (uint64_t)c] = v[c] + IDX_BIAS;
 		slot[k] = object[q];
+		if (op)
+			op[k] = isfinite(opacity[q]) ? fminf(fmaxf(opacity[q], 0.0f), 1.0f) : 1.0f;
 		if (!nruns || runs[nruns - 1] != object[q])
 			runs[nruns++] = object[q];
 		k++;
@@ -422,17 +619,21 @@ struct gpu_shadow_geometry *gpu_shadow_geometry_create(struct gpu_ctx *ctx, cons
 	g->quads = upload(g, (size_t)kept * 4 * sizeof(uint32_t), idx);
 	g->slots = upload(g, (size_t)kept * sizeof(uint32_t), slot);
 	g->casts = upload(g, (size_t)nslots * sizeof(float), g->flags);
-	if (!g->points || !g->quads || !g->slots || !g->casts) {
+	if (op)
+		g->opacity = upload(g, (size_t)kept * sizeof(float), op);
+	if (!g->points || !g->quads || !g->slots || !g->casts || (op && !g->opacity)) {
 		snprintf(err, errlen, "shadow geometry: cannot upload %llu points and %llu "
 			 "micropolygons", (unsigned long long)npoints, (unsigned long long)kept);
 		goto fail;
 	}
+	free(op);
 	free(runs);
 	free(slot);
 	free(idx);
 	return g;
 
 fail:
+	free(op);
 	free(runs);
 	free(slot);
 	free(idx);
@@ -445,6 +646,7 @@ void gpu_shadow_geometry_destroy(struct gpu_shadow_geometry *g)
 	if (!g)
 		return;
 	gpu_buffer_destroy(g->scratch);
+	gpu_buffer_destroy(g->opacity);
 	gpu_buffer_destroy(g->casts);
 	gpu_buffer_destroy(g->slots);
 	gpu_buffer_destroy(g->quads);
@@ -562,7 +764,8 @@ bool gpu_shadow_geometry_render(struct gpu_ctx *ctx, struct gpu_shadow_geometry 
 		if (!gpu_uniform_mat4(g->raster, "u_to_ndc", world_to_ndc) ||
 		    !gpu_uniform_float(g->raster, "u_zrow", zrow, 4) ||
 		    !gpu_uniform_int(g->raster, "u_width", (int)width) ||
-		    !gpu_uniform_int(g->raster, "u_height", (int)height))
+		    !gpu_uniform_int(g->raster, "u_height", (int)height) ||
+		    !gpu_uniform_int(g->raster, "u_ns", 1))
 			return false;
 		for (int pass = 0; pass < (midpoint ? 2 : 1); pass++)
 			if (!gpu_uniform_int(g->raster, "u_pass", pass) ||
@@ -570,4 +773,222 @@ bool gpu_shadow_geometry_render(struct gpu_ctx *ctx, struct gpu_shadow_geometry 
 				return false;
 	}
 	return !midpoint || gpu_dispatch(ctx, g->resolve, out, 2, npix);
+}
+
+/* ---- deep maps ---- */
+
+bool gpu_shadow_geometry_has_opacity(const struct gpu_shadow_geometry *g)
+{
+	return g && g->opacity;
+}
+
+static bool deep_programs(struct gpu_shadow_geometry *g)
+{
+	if (!g->deep_clear)
+		g->deep_clear = gpu_program(g->ctx, deep_clear_src, NULL);
+	if (!g->deep_raster)
+		g->deep_raster = gpu_program(g->ctx, deep_raster_src, NULL);
+	if (!g->deep_build)
+		g->deep_build = gpu_program(g->ctx, deep_build_src, NULL);
+	if (!g->deep_pack)
+		g->deep_pack = gpu_program(g->ctx, deep_pack_src, NULL);
+	return g->deep_clear && g->deep_raster && g->deep_build && g->deep_pack;
+}
+
+/* The scratch of one deep render: freed when it ends, whatever happens. */
+struct deep_scratch {
+	struct gpu_buffer *count, *offsets, *events, *nodes;
+	uint32_t *host;              /* npix + 1 counts, then offsets */
+	size_t bytes;
+};
+
+static struct gpu_buffer *deep_buffer(struct gpu_ctx *ctx, struct deep_scratch *d, size_t bytes)
+{
+	size_t size = bytes < 16 ? 16 : bytes;
+	struct gpu_buffer *b = gpu_buffer_create(ctx, size, NULL);
+	if (b)
+		d->bytes += size;
+	return b;
+}
+
+static void deep_scratch_free(struct deep_scratch *d)
+{
+	gpu_buffer_destroy(d->nodes);
+	gpu_buffer_destroy(d->events);
+	gpu_buffer_destroy(d->offsets);
+	gpu_buffer_destroy(d->count);
+	free(d->host);
+}
+
+/* Counts to exclusive prefix sums in place (npix + 1 entries); false past @cap in all. */
+static bool prefix_sums(uint32_t *c, uint32_t npix, uint64_t cap, uint64_t *total,
+			uint32_t *largest)
+{
+	uint64_t at = 0;
+	uint32_t big = 0;
+	for (uint32_t p = 0; p < npix; p++) {
+		uint32_t n = c[p];
+		big = n > big ? n : big;
+		c[p] = (uint32_t)(at <= UINT32_MAX ? at : UINT32_MAX);
+		at += n;
+	}
+	c[npix] = (uint32_t)(at <= UINT32_MAX ? at : UINT32_MAX);
+	*total = at;
+	if (largest)
+		*largest = big;
+	return at <= cap;
+}
+
+struct gpu_buffer *gpu_shadow_geometry_render_deep(struct gpu_ctx *ctx,
+						   struct gpu_shadow_geometry *g,
+						   const float world_to_camera[16],
+						   const float world_to_ndc[16], uint32_t width,
+						   uint32_t height, const struct gpu_deep_opts *o,
+						   const float *casts, uint32_t ncasts,
+						   struct gpu_deep_stats *st, char *err, size_t errlen)
+{
+	char dummy[1];
+	if (!err || !errlen) {
+		err = dummy;
+		errlen = sizeof(dummy);
+	}
+	err[0] = '\0';
+	struct gpu_deep_stats none;
+	if (!st)
+		st = &none;
+	memset(st, 0, sizeof(*st));
+	if (!ctx || !g || g->ctx != ctx || !world_to_camera || !world_to_ndc || !o) {
+		snprintf(err, errlen, "deep shadow map: no context, geometry, matrices or options");
+		return NULL;
+	}
+	if (!g->opacity) {
+		snprintf(err, errlen, "the shot's shadow geometry has no opacity (it was baked "
+			 "before relight recorded it)");
+		return NULL;
+	}
+	uint32_t ns = o->samples;
+	if (!width || !height || (uint64_t)width * height * ns * ns > MAX_MAP_PIXELS || !ns ||
+	    ns * ns > GPU_DEEP_MAX_SAMPLES || !(o->error >= 0.0f) ||
+	    !(o->threshold > 0.0f && o->threshold <= 1.0f)) {
+		snprintf(err, errlen, "deep shadow map: a %ux%u map of %u x %u samples per texel, "
+			 "error %g, threshold %g", width, height, ns, ns, (double)o->error,
+			 (double)o->threshold);
+		return NULL;
+	}
+	if (!matrix_finite(world_to_camera) || !matrix_finite(world_to_ndc)) {
+		snprintf(err, errlen, "deep shadow map: a matrix is not finite");
+		return NULL;
+	}
+	if (!programs(g) || !deep_programs(g) || !set_casts(g, casts, ncasts)) {
+		snprintf(err, errlen, "deep shadow map: its programs do not build or run");
+		return NULL;
+	}
+	uint32_t npix = width * height;
+	uint64_t cap = o->max_hits ? o->max_hits : GPU_DEEP_MAX_HITS;
+	struct deep_scratch d = { 0 };
+	struct gpu_buffer *map = NULL;
+	d.host = malloc(((size_t)npix + 1) * sizeof(uint32_t));
+	d.count = deep_buffer(ctx, &d, (size_t)npix * sizeof(uint32_t));
+	d.offsets = deep_buffer(ctx, &d, ((size_t)npix + 1) * sizeof(uint32_t));
+	if (!d.host || !d.count || !d.offsets) {
+		snprintf(err, errlen, "deep shadow map: out of memory for a %ux%u map", width, height);
+		goto done;
+	}
+	float zrow[4] = { world_to_camera[2], world_to_camera[6], world_to_camera[10],
+			  world_to_camera[14] };
+	/* the event buffer is bound for pass 0 too; the count alone sizes it later */
+	struct gpu_binding b[8] = {
+		{ .unit = 0, .buffer = g->points },
+		{ .unit = 1, .buffer = g->quads, .rgba = true },
+		{ .unit = 2, .buffer = g->slots },
+		{ .unit = 3, .buffer = g->casts },
+		{ .unit = 4, .buffer = g->opacity },
+		{ .unit = 0, .ssbo = true, .buffer = d.count },
+		{ .unit = 1, .ssbo = true, .buffer = d.offsets },
+		{ .unit = 2, .ssbo = true, .buffer = d.offsets },
+	};
+	struct gpu_program *r = g->deep_raster;
+	bool ok = gpu_dispatch(ctx, g->deep_clear, b + 5, 1, npix) &&
+		  (!g->nquads ||
+		   (gpu_uniform_mat4(r, "u_to_ndc", world_to_ndc) &&
+		    gpu_uniform_float(r, "u_zrow", zrow, 4) &&
+		    gpu_uniform_int(r, "u_width", (int)width) &&
+		    gpu_uniform_int(r, "u_height", (int)height) &&
+		    gpu_uniform_int(r, "u_ns", (int)ns) && gpu_uniform_int(r, "u_pass", 0) &&
+		    gpu_dispatch(ctx, r, b, 8, g->nquads))) &&
+		  gpu_buffer_read(d.count, 0, (size_t)npix * sizeof(uint32_t), d.host);
+	if (!ok) {
+		snprintf(err, errlen, "deep shadow map: counting its hits failed on the GPU");
+		goto done;
+	}
+	if (!prefix_sums(d.host, npix, cap, &st->hits, &st->max_hits)) {
+		snprintf(err, errlen, "deep shadow map: %llu hits, over the %llu a map may have on "
+			 "the GPU", (unsigned long long)st->hits, (unsigned long long)cap);
+		goto done;
+	}
+	if (st->max_hits > GPU_DEEP_MAX_TEXEL_HITS) {
+		snprintf(err, errlen, "deep shadow map: a texel of %u hits, over the %u one may have "
+			 "on the GPU", st->max_hits, GPU_DEEP_MAX_TEXEL_HITS);
+		goto done;
+	}
+	d.events = deep_buffer(ctx, &d, (size_t)st->hits * 3 * sizeof(uint32_t));
+	/* at most two nodes (four floats) per event */
+	d.nodes = deep_buffer(ctx, &d, (size_t)st->hits * 4 * sizeof(float));
+	if (!d.events || !d.nodes ||
+	    !gpu_buffer_write(d.offsets, 0, ((size_t)npix + 1) * sizeof(uint32_t), d.host)) {
+		snprintf(err, errlen, "deep shadow map: out of GPU memory for %llu hits",
+			 (unsigned long long)st->hits);
+		goto done;
+	}
+	b[7].buffer = d.events;
+	struct gpu_binding bb[4] = {
+		{ .unit = 0, .ssbo = true, .buffer = d.count },
+		{ .unit = 1, .ssbo = true, .buffer = d.offsets },
+		{ .unit = 2, .ssbo = true, .buffer = d.events },
+		{ .unit = 3, .ssbo = true, .buffer = d.nodes },
+	};
+	struct gpu_program *bd = g->deep_build;
+	ok = gpu_dispatch(ctx, g->deep_clear, bb, 1, npix) &&
+	     (!g->nquads ||
+	      (gpu_uniform_int(r, "u_pass", 1) && gpu_dispatch(ctx, r, b, 8, g->nquads))) &&
+	     gpu_uniform_int(bd, "u_samples", (int)(ns * ns)) &&
+	     gpu_uniform_float(bd, "u_error", &o->error, 1) &&
+	     gpu_uniform_float(bd, "u_threshold", &o->threshold, 1) &&
+	     gpu_dispatch(ctx, bd, bb, 4, npix) &&
+	     gpu_buffer_read(d.count, 0, (size_t)npix * sizeof(uint32_t), d.host);
+	if (!ok) {
+		snprintf(err, errlen, "deep shadow map: sorting and compressing its hits failed on "
+			 "the GPU");
+		goto done;
+	}
+	if (!prefix_sums(d.host, npix, GPU_DEEP_MAX_NODES, &st->nodes, NULL)) {
+		snprintf(err, errlen, "deep shadow map: %llu nodes, over the GPU's %u",
+			 (unsigned long long)st->nodes, GPU_DEEP_MAX_NODES);
+		goto done;
+	}
+	/* the offsets in the map's own format: floats, exact below 2^24 */
+	size_t nmap = (size_t)npix + 1 + 2 * (size_t)st->nodes;
+	float *off = malloc(((size_t)npix + 1) * sizeof(float));
+	map = off ? gpu_buffer_create(ctx, nmap * sizeof(float), NULL) : NULL;
+	for (uint32_t p = 0; off && p <= npix; p++)
+		off[p] = (float)d.host[p];
+	ok = map && gpu_buffer_write(map, 0, ((size_t)npix + 1) * sizeof(float), off);
+	free(off);
+	/* the pack pass takes each texel's node count from the build's count buffer */
+	struct gpu_binding pb[5] = {
+		bb[0], bb[1], bb[2], bb[3], { .unit = 4, .ssbo = true, .buffer = map },
+	};
+	ok = ok && gpu_dispatch(ctx, g->deep_pack, pb, 5, npix);
+	if (!ok) {
+		snprintf(err, errlen, "deep shadow map: out of GPU memory for %llu nodes",
+			 (unsigned long long)st->nodes);
+		gpu_buffer_destroy(map);
+		map = NULL;
+		goto done;
+	}
+	st->bytes = nmap * sizeof(float);
+done:
+	st->scratch_bytes = d.bytes;
+	deep_scratch_free(&d);
+	return map;
 }

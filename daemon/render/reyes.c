@@ -2137,7 +2137,7 @@ bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *o
 					prim->id);
 				ok = false;
 			}
-			ok = ok && opts->grid(opts->user, prim, c.P0, c.nu, c.nv, keep);
+			ok = ok && opts->grid(opts->user, prim, c.P0, c.nu, c.nv, keep, c.Os);
 			free(keep);
 			free(c.P0);
 			reyes_grid_finish(&g);

@@ -121,10 +121,12 @@ struct reyes_dice_opts {
 	 * k at P[k], P[n + k], P[2n + k] with n = nu * nv. @P is the dicer's,
 	 * valid during the call. @keep: NULL, or for a trimmed NuPatch one
 	 * byte per micropolygon (i, j) at j * (nu - 1) + i, 0 where the trim
-	 * curve cuts its centre away. Return false to stop (dicing then fails).
+	 * curve cuts its centre away. @Os: the grid's "Os" primitive variable
+	 * per point, planar like @P, or NULL when the primitive has none (its
+	 * Opacity attribute holds). Return false to stop (dicing then fails).
 	 */
 	bool (*grid)(void *user, const struct reyes_prim *prim, const float *P, uint32_t nu,
-		     uint32_t nv, const uint8_t *keep);
+		     uint32_t nv, const uint8_t *keep, const float *Os);
 };
 
 /**

@@ -317,8 +317,9 @@ struct kept {
 };
 
 static bool on_grid(void *user, const struct reyes_prim *prim, const float *P, uint32_t nu,
-		    uint32_t nv, const uint8_t *keep)
+		    uint32_t nv, const uint8_t *keep, const float *Os)
 {
+	(void)Os;
 	(void)prim;
 	struct kept *k = user;
 	uint32_t n = nu * nv;

@@ -35,11 +35,13 @@ struct result {
 	uint32_t nlights;
 	bool casts[8];
 	uint64_t culled_grids;          /* grids reyes_dice gives when it culls to the view */
+	FILE *diag;                     /* NULL: stderr */
 };
 
 static bool count_grid(void *user, const struct reyes_prim *prim, const float *P, uint32_t nu,
-		       uint32_t nv, const uint8_t *keep)
+		       uint32_t nv, const uint8_t *keep, const float *Os)
 {
+	(void)Os;
 	(void)keep;
 	(void)prim;
 	(void)P;
@@ -52,7 +54,7 @@ static bool count_grid(void *user, const struct reyes_prim *prim, const float *P
 static bool on_frame(void *user, const struct reyes_scene *scene)
 {
 	struct result *res = user;
-	res->ok = bake_shadow_geometry(scene, res->rate, stderr, &res->geo);
+	res->ok = bake_shadow_geometry(scene, res->rate, res->diag ? res->diag : stderr, &res->geo);
 	res->nlights = scene->nlights;
 	for (uint32_t i = 0; i < scene->nlights && i < 8; i++)
 		res->casts[i] = bake_light_casts_shadows(scene, i);
@@ -62,10 +64,11 @@ static bool on_frame(void *user, const struct reyes_scene *scene)
 }
 
 /* Write @rib to a file in the temporary directory and dice it at @rate. */
-static bool dice(const char *rib, float rate, struct result *res)
+static bool dice_to(const char *rib, float rate, FILE *diag, struct result *res)
 {
 	memset(res, 0, sizeof(*res));
 	res->rate = rate;
+	res->diag = diag;
 	const char *path = tmp_path("scene.rib");
 	FILE *f = fopen(path, "w");
 	if (!f)
@@ -85,6 +88,11 @@ static bool dice(const char *rib, float rate, struct result *res)
 		return false;
 	}
 	return res->ok;
+}
+
+static bool dice(const char *rib, float rate, struct result *res)
+{
+	return dice_to(rib, rate, NULL, res);
 }
 
 static const float *point(const struct bake_shadow_geometry *g, uint32_t i)
@@ -396,6 +404,99 @@ static void test_ids(void)
 }
 
 /* Bad arguments are refused with a message, and leave the result empty. */
+/*
+ * Opacity, what deep maps see (the grey of Oi): the Opacity attribute and a
+ * constant "Os" for surfaces that set Oi = Os (plastic, the default
+ * surface), the mean of a varying "Os" over a micropolygon's corners, 1 for
+ * a matte object and for a surface that never sets Oi, and Os with a
+ * warning at the assignment for one that computes Oi.
+ */
+static void test_opacity(void)
+{
+	FILE *f = fopen(tmp_path("noopacity.sl"), "w");
+	CHECK(f != NULL);
+	if (!f)
+		return;
+	fputs("surface noopacity() {\n\tCi = Cs;\n}\n", f);
+	fclose(f);
+	f = fopen(tmp_path("halfopacity.sl"), "w");
+	CHECK(f != NULL);
+	if (!f)
+		return;
+	fputs("surface halfopacity(float k = 0.5) {\n\tCi = Cs;\n\tOi = Os * k;\n}\n", f);
+	fclose(f);
+	const char *rib =
+		"Format 64 64 1\n"
+		"Projection \"perspective\" \"fov\" 45\n"
+		"Translate 0 0 5\n"
+		"WorldBegin\n"
+		"  LightSource \"shadowspot\" 1 \"shadowname\" \"x.shd\"\n"
+		"  Surface \"plastic\"\n"
+		"  AttributeBegin Opacity [0.3 0.6 0.9]\n"
+		"    Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] AttributeEnd\n"
+		"  Polygon \"P\" [-1 -1 1  1 -1 1  1 1 1  -1 1 1] \"constant color Os\" [0.2 0.2 0.2]\n"
+		"  Polygon \"P\" [-1 -1 2  1 -1 2  1 1 2  -1 1 2]\n"
+		"    \"varying color Os\" [0 0 0  0 0 0  1 1 1  1 1 1]\n"
+		"  AttributeBegin Matte 1 Opacity [0.3 0.3 0.3]\n"
+		"    Polygon \"P\" [-1 -1 3  1 -1 3  1 1 3  -1 1 3] AttributeEnd\n"
+		"  AttributeBegin Surface \"noopacity\" Opacity [0.3 0.3 0.3]\n"
+		"    Polygon \"P\" [-1 -1 4  1 -1 4  1 1 4  -1 1 4] AttributeEnd\n"
+		"  AttributeBegin Surface \"halfopacity\" Opacity [0.4 0.4 0.4]\n"
+		"    Polygon \"P\" [-1 -1 5  1 -1 5  1 1 5  -1 1 5] AttributeEnd\n"
+		"WorldEnd\n";
+	char *buf = NULL;
+	size_t len = 0;
+	FILE *mem = open_memstream(&buf, &len);
+	struct result res;
+	CHECK(dice_to(rib, 1, mem, &res));
+	fclose(mem);
+	CHECK(well_formed(&res.geo));
+	/* per object: the smallest and largest opacity, the sum, the count */
+	double lo[6], hi[6], sum[6];
+	uint64_t n[6] = { 0 };
+	for (int k = 0; k < 6; k++) {
+		lo[k] = 2;
+		hi[k] = -1;
+		sum[k] = 0;
+	}
+	bool varying_ok = true;
+	for (uint64_t q = 0; q < res.geo.nquads; q++) {
+		uint32_t id = res.geo.object[q];
+		if (id >= 6)
+			continue;
+		double o = res.geo.opacity[q];
+		lo[id] = fmin(lo[id], o);
+		hi[id] = fmax(hi[id], o);
+		sum[id] += o;
+		n[id]++;
+		if (id == 2) {
+			/* Os runs from 0 at y = -1 to 1 at y = 1: the corners' mean */
+			double y = 0;
+			for (int c = 0; c < 4; c++)
+				y += point(&res.geo, res.geo.quads[4 * q + (uint64_t)c])[1] / 4.0;
+			varying_ok = varying_ok && fabs(o - 0.5 * (y + 1)) <= 1e-5;
+		}
+	}
+	static const double want[6] = { 0.6, 0.2, -1, 1, 1, 0.4 };
+	for (int k = 0; k < 6; k++) {
+		printf("opacity of object %d: %llu micropolygons, %.6g to %.6g, mean %.6g (want %s%g)\n",
+		       k, (unsigned long long)n[k], lo[k], hi[k], n[k] ? sum[k] / (double)n[k] : 0,
+		       want[k] < 0 ? "0 to 1, " : "", want[k] < 0 ? 0.5 : want[k]);
+		CHECK(n[k] > 0);
+		if (want[k] >= 0)
+			CHECK(fabs(lo[k] - want[k]) <= 1e-6 && fabs(hi[k] - want[k]) <= 1e-6);
+	}
+	CHECK(varying_ok && lo[2] < 0.2 && hi[2] > 0.8);
+	/* one warning, at the shader's assignment */
+	const char *said = "halfopacity.sl:3: warning: surface 'halfopacity' computes Oi";
+	const char *w = buf ? strstr(buf, said) : NULL;
+	CHECK(w && !strstr(w + strlen(said), "computes Oi") && !strstr(buf, "plastic"));
+	if (!w)
+		fprintf(stderr, "the dicing said: %s\n", buf ? buf : "");
+	free(buf);
+	bake_shadow_geometry_free(&res.geo);
+}
+
 static void test_errors(void)
 {
 	struct result res;
@@ -423,6 +524,7 @@ int main(void)
 	RUN(test_displacement);
 	RUN(test_lights);
 	RUN(test_ids);
+	RUN(test_opacity);
 	RUN(test_errors);
 	char cmd[600];
 	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", tmpdir);

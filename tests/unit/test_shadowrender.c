@@ -34,6 +34,7 @@
 #include "reyes.h"
 #include "ri.h"
 #include "texture.h"
+#include "deepshadow.h"
 #include "config.h"
 
 #include <math.h>
@@ -175,7 +176,7 @@ static bool render_mesh(const struct mesh *m, const float w2c[16], const float w
 {
 	char err[256];
 	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(ctx, m->P, m->npoints, m->quads,
-								   m->object, m->nquads, err,
+								   m->object, NULL, m->nquads, err,
 								   sizeof(err));
 	if (!g) {
 		fprintf(stderr, "geometry: %s\n", err);
@@ -316,7 +317,7 @@ static void test_two_squares(void)
 	 * scratch are reused). */
 	char err[256];
 	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(ctx, m.P, m.npoints, m.quads,
-								   m.object, m.nquads, err,
+								   m.object, NULL, m.nquads, err,
 								   sizeof(err));
 	CHECK(g != NULL);
 	struct gpu_buffer *buf = gpu_buffer_create(ctx, 32 * 32 * sizeof(float), NULL);
@@ -507,7 +508,7 @@ static void test_garbage(void)
 
 	/* Nothing at all, and no points. */
 	char err[256];
-	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(ctx, NULL, 0, NULL, NULL, 0, err,
+	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(ctx, NULL, 0, NULL, NULL, NULL, 0, err,
 								   sizeof(err));
 	CHECK(g != NULL);
 	struct gpu_buffer *buf = gpu_buffer_create(ctx, 8 * 8 * sizeof(float), NULL);
@@ -520,8 +521,8 @@ static void test_garbage(void)
 	gpu_shadow_geometry_destroy(NULL);
 	CHECK(gpu_shadow_geometry_bytes(NULL) == 0);
 	uint32_t q4[4] = { 0, 0, 0, 0 };
-	CHECK(!gpu_shadow_geometry_create(ctx, NULL, 1, q4, q4, 1, err, sizeof(err)));
-	CHECK(!gpu_shadow_geometry_create(NULL, NULL, 0, NULL, NULL, 0, NULL, 0));
+	CHECK(!gpu_shadow_geometry_create(ctx, NULL, 1, q4, q4, NULL, 1, err, sizeof(err)));
+	CHECK(!gpu_shadow_geometry_create(NULL, NULL, 0, NULL, NULL, NULL, 0, NULL, 0));
 }
 
 /* ---- (b) against the renderer ---- */
@@ -649,7 +650,7 @@ static double compare_with_map(const struct bake_shadow_geometry *geo,
 	char err[256];
 	double t0 = now();
 	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(ctx, geo->P, geo->npoints,
-								   geo->quads, geo->object,
+								   geo->quads, geo->object, geo->opacity,
 								   geo->nquads, err, sizeof(err));
 	double t_create = now() - t0;
 	if (!g) {
@@ -747,6 +748,143 @@ static void test_renderer(void)
 	bake_shadow_geometry_free(&ps.geo);
 }
 
+/*
+ * A deep shadow pass (render/deepshadow.h) of semi-transparent planes, a
+ * sphere and hairs, at 4 x 4 unjittered samples per texel, against the
+ * same pass rendered on the GPU from its own shadow geometry: both
+ * functions evaluated just before and after every node depth of either
+ * (1e-3 of the 6 units to the receiver) and halfway to the next node when
+ * that is further, per texel. Each is compressed within REYES_DEEP_DEFAULT_ERROR of the
+ * exact function, so two of the same hits differ by at most twice that.
+ */
+static const char deep_rib[] =
+	"FrameBegin 1\n"
+	"  Format 64 64 1\n"
+	"  PixelSamples 4 4\n"
+	"  PixelFilter \"box\" 1 1\n"
+	"  Hider \"hidden\" \"jitter\" 0\n"
+	"  Projection \"orthographic\"\n"
+	"  ScreenWindow -4 4 -4 4\n"
+	"  Display \"deep.dsm\" \"deepshad\" \"deepopacity\"\n"
+	"  Rotate -90 1 0 0\n"
+	"  Translate -0.3 -6 0.2\n"
+	"  WorldBegin\n"
+	"    ShadingRate 1\n"
+	"    Surface \"constant\"\n"
+	"    AttributeBegin Opacity [0.3 0.3 0.3]\n"
+	"      Polygon \"P\" [-2 1 -2  2 1 -2  2 1 2  -2 1 2] AttributeEnd\n"
+	"    AttributeBegin Opacity [0.5 0.5 0.5]\n"
+	"      Polygon \"P\" [-1 2 -3  3 2 -3  3 2 1  -1 2 1] AttributeEnd\n"
+	"    AttributeBegin Opacity [0.4 0.2 0.6] Translate -1.5 3 1.5\n"
+	"      Sphere 1 -1 1 360 AttributeEnd\n"
+	"    AttributeBegin Opacity [0.6 0.6 0.6]\n"
+	"      Curves \"linear\" [3 3] \"nonperiodic\" \"P\" [-3 0.5 -1  0 0.7 -0.5  3 0.5 0\n"
+	"        -3 0.6 1  0 0.4 1.5  3 0.6 2] \"N\" [0 1 0  0 1 0  0 1 0  0 1 0  0 1 0  0 1 0]\n"
+	"        \"constantwidth\" [0.15] AttributeEnd\n"
+	"    Polygon \"P\" [-4 0 -4  4 0 -4  4 0 4  -4 0 4]\n"
+	"  WorldEnd\n"
+	"FrameEnd\n";
+
+static void test_deep(void)
+{
+	char path[512], err[256];
+	snprintf(path, sizeof(path), "%s/deep.rib", tmpdir);
+	FILE *f = fopen(path, "w");
+	CHECK(f != NULL);
+	if (!f)
+		return;
+	fputs(deep_rib, f);
+	fclose(f);
+	struct pass ps = { .rate = 1.0f, .dice_shadow_pass = true };
+	CHECK(read_rib(path, &ps));
+	struct reyes_texsys *ts = NULL;
+	struct reyes_shadow_map_info map;
+	if (!ps.ok || !load_map(&ts, "deep.dsm", &map) || map.depth) {
+		CHECK(!"the renderer's deep shadow map");
+		reyes_texsys_destroy(ts);
+		bake_shadow_geometry_free(&ps.geo);
+		return;
+	}
+	struct gpu_shadow_geometry *g = gpu_shadow_geometry_create(
+		ctx, ps.geo.P, ps.geo.npoints, ps.geo.quads, ps.geo.object, ps.geo.opacity,
+		ps.geo.nquads, err, sizeof(err));
+	CHECK(g && gpu_shadow_geometry_has_opacity(g));
+	const struct gpu_deep_opts o = { .samples = 4, .error = REYES_DEEP_DEFAULT_ERROR,
+					 .threshold = GPU_DEEP_THRESHOLD };
+	struct gpu_deep_stats st;
+	struct gpu_buffer *b = g ? gpu_shadow_geometry_render_deep(ctx, g, map.world_to_camera,
+								   map.world_to_ndc, map.width,
+								   map.height, &o, NULL, 0, &st, err,
+								   sizeof(err)) : NULL;
+	if (!b)
+		fprintf(stderr, "deep render: %s\n", err);
+	CHECK(b != NULL);
+	size_t npix = (size_t)map.width * map.height;
+	float *plane = b ? malloc(st.bytes) : NULL;
+	CHECK(!b || (plane && gpu_buffer_read(b, 0, st.bytes, plane)));
+	if (plane) {
+		uint32_t *off = malloc((npix + 1) * sizeof(uint32_t));
+		for (size_t p = 0; p <= npix; p++)
+			off[p] = (uint32_t)plane[p];
+		CHECK(off[npix] == st.nodes && st.bytes == (npix + 1 + 2 * st.nodes) * 4);
+		struct reyes_deep_map gm = { map.width, map.height, off, plane + npix + 1 };
+		struct reyes_deep_map rm = { map.width, map.height, (uint32_t *)map.deep_offsets,
+					     (float *)map.deep_nodes };
+		double worst = 0, sum = 0, lit = 0;
+		uint64_t evals = 0, shadowed = 0;
+		for (uint32_t y = 0; y < map.height; y++)
+			for (uint32_t x = 0; x < map.width; x++) {
+				size_t p = (size_t)y * map.width + x;
+				const struct reyes_deep_map *m2[2] = { &gm, &rm };
+				for (int k = 0; k < 2; k++)
+					for (uint32_t i = m2[k]->offsets[p]; i < m2[k]->offsets[p + 1];
+					     i++) {
+						double z0 = m2[k]->zt[2 * i];
+						double z1 = i + 1 < m2[k]->offsets[p + 1]
+								    ? m2[k]->zt[2 * i + 2] : z0 + 1;
+						/* beside a node, not at it: a step's depth one
+						   rounding apart is a whole step apart there */
+						double zs[3] = { z0 - 1e-3, z0 + 1e-3, 0.5 * (z0 + z1) };
+						for (int j = 0; j < (z1 - z0 > 2e-3 ? 3 : 2); j++) {
+							double d = fabs(reyes_deep_eval(&gm, x, y, zs[j]) -
+									reyes_deep_eval(&rm, x, y, zs[j]));
+							worst = fmax(worst, d);
+							sum += d;
+							evals++;
+						}
+					}
+				double tr = reyes_deep_eval(&rm, x, y, 5.9);
+				shadowed += tr < 0.99;
+				lit += tr;
+			}
+		printf("deep map: GPU %llu hits (at most %u in a texel), %llu nodes, %zu bytes, "
+		       "%zu of scratch; renderer %u nodes; over %llu lookups |T_gpu - T_render| "
+		       "mean %.3g, largest %.3g (bound %.3g); %llu of %zu texels shadowed above "
+		       "the floor, mean T %.3f\n", (unsigned long long)st.hits, st.max_hits,
+		       (unsigned long long)st.nodes, st.bytes, st.scratch_bytes,
+		       map.deep_offsets[npix], (unsigned long long)evals, sum / (double)evals,
+		       worst, 2.0 * REYES_DEEP_DEFAULT_ERROR, (unsigned long long)shadowed, npix,
+		       lit / (double)npix);
+		CHECK(evals > 1000 && shadowed > npix / 4);
+		CHECK(worst <= 2.0 * REYES_DEEP_DEFAULT_ERROR + 1e-4);
+		/* the same samples see the same hits: far closer than the bound */
+		CHECK(sum / (double)evals <= 1e-5);
+		free(off);
+	}
+	free(plane);
+	/* over the bound of one texel's list: refused, and said */
+	const struct gpu_deep_opts few = { .samples = 4, .error = REYES_DEEP_DEFAULT_ERROR,
+					   .threshold = GPU_DEEP_THRESHOLD, .max_hits = 10 };
+	CHECK(!g || !gpu_shadow_geometry_render_deep(ctx, g, map.world_to_camera,
+						      map.world_to_ndc, map.width, map.height,
+						      &few, NULL, 0, NULL, err, sizeof(err)));
+	CHECK(strstr(err, "hits, over the 10") != NULL);
+	gpu_buffer_destroy(b);
+	gpu_shadow_geometry_destroy(g);
+	reyes_texsys_destroy(ts);
+	bake_shadow_geometry_free(&ps.geo);
+}
+
 static int bench(const char *rib)
 {
 	char path[4096];
@@ -808,6 +946,7 @@ int main(int argc, char **argv)
 		RUN(test_tilted);
 		RUN(test_garbage);
 		RUN(test_renderer);
+		RUN(test_deep);
 		rc = test_finish();
 	}
 	char cmd[600];
