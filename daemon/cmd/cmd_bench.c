@@ -65,7 +65,8 @@ static void usage(FILE *out)
 		"    'relight render --set' of the same edit: linear RMSE, mean and max error in\n"
 		"    percent of the 8-bit range, PSNR (as 'relight diff' measures them);\n"
 		"  - the cache: samples kept of the micropolygons shaded, indirect entries of\n"
-		"    the subpixel samples, channels, bytes before and after compression;\n"
+		"    the subpixel samples (in all and per pixel), channels, bytes before and\n"
+		"    after compression;\n"
 		"  - the latency from an edit sent to relightd to its first tile received.\n"
 		"Then a street of spheres lit by 1 to 64 lights: the time of one light's edit\n"
 		"with the light cache and without it (every light shaded again), and the\n"
@@ -1043,7 +1044,7 @@ static void level_table(FILE *f, const struct example_res *r, bool md)
 
 /*
  * The cache's totals and per pixel: lightspeed-2007 gives totals (Fig. 15: 11M
- * samples, 17M entries at 720x389), which only compare per pixel across sizes.
+ * samples, 17M entries at 720x389); per pixel they compare with another size.
  */
 static void cache_line(FILE *f, const struct example_res *r)
 {
@@ -1335,8 +1336,8 @@ static void write_markdown(FILE *f, const struct bench *b, const cJSON *j)
 			"micropolygon, every dynamic channel, float), kept samples, unique channels, "
 			"half where exact enough, and as stored in the shot file (compressed).\n\n"
 			"\"Per pixel\" divides the samples kept and the entries by the image's pixels, "
-			"as the paper's totals compare across sizes (Fig. 15: 11M samples and 17M entries "
-			"at 720x389, 39 and 61 per pixel).\n\n"
+			"so that they compare with the paper's totals at another size (Fig. 15: 11M "
+			"samples and 17M entries at 720x389, 39 and 61 per pixel).\n\n"
 			"| example | micropolygons / samples | subpixel samples / entries | per pixel: "
 			"samples / entries | channels dynamic / varying / unique (half) | raw MB | kept MB "
 			"| unique MB | half MB | stored MB | raw / stored | shot file MB |\n|---|---|---|"
