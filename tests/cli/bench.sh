@@ -11,6 +11,8 @@
 #   - the light-count rows: without the light cache an edit of one light in
 #     16 costs more than with it, and both give the same image (1e-4
 #     relative);
+#   - the cache's samples kept and indirect entries per pixel, in the JSON
+#     (the totals over the image's pixels) and in the Markdown's cache table;
 #   - no NaN or Infinity anywhere in the JSON;
 #   - usage errors exit 2; a missing example exits 1 naming it.
 #
@@ -51,6 +53,9 @@ for f in report.md report/report.json report/speed-error.svg report/speed-maxerr
 done
 expect_true "report.md has the example" grep -q '^## shadows' "$out/report.md"
 expect_true "report.md has the light counts" grep -q '^## Light count' "$out/report.md"
+expect_true "report.md has the cache per pixel" grep -q \
+	'^| shadows | [0-9]* / [0-9]* ([0-9.]*x) | [0-9]* / [0-9]* ([0-9.]*x) | [0-9.]* / [0-9.]* | [0-9]* / [0-9]* / [0-9]* (' \
+	"$out/report.md"
 expect_true "report.md names its command" grep -q 'relight bench --quick' "$out/report.md"
 expect_true "JSON on stdout equals the report's" \
 	python3 -c 'import json,sys; a=json.load(open(sys.argv[1])); b=json.load(open(sys.argv[2])); sys.exit(a!=b)' \
@@ -84,6 +89,12 @@ check(e["render_s"] > 0 and e["bake_s"] > 0, "render and bake timed")
 c = e["cache"]
 check(c["stored_bytes"] > 0 and c["raw_bytes"] > c["stored_bytes"], "the cache is compressed")
 check(c["shaded_points"] >= c["shading_samples"] > 0, "samples kept <= micropolygons")
+# per pixel, as lightspeed-2007's totals compare across image sizes
+px = e["width"] * e["height"]
+for k in ("shading_samples", "indirect_entries"):
+	v = c.get(k + "_per_pixel")
+	check(v is not None and abs(v - c[k] / px) <= 1e-9 * v, "%s per pixel: %s, expected %g"
+	      % (k, v, c[k] / px))
 lat = e["latency"]
 check(len(lat) == 1 and lat[0]["clients"] == 1 and lat[0]["median_ms"] > 0, "latency measured")
 rows = j["light_counts"]["rows"]

@@ -185,6 +185,7 @@ static const struct {
 	{ "plastic", SL_SHADER_SURFACE, "Ka Kd Ks roughness specularcolor" },
 	{ "paintedplastic", SL_SHADER_SURFACE, "Ka Kd Ks roughness specularcolor texturename" },
 	{ "defaultsurface", SL_SHADER_SURFACE, "Kd Ka" },
+	{ "hair", SL_SHADER_SURFACE, "Ka Kd Ks roughness rootdarken specularcolor" },
 	{ "ambientlight", SL_SHADER_LIGHT, "intensity lightcolor" },
 	{ "distantlight", SL_SHADER_LIGHT, "intensity lightcolor from to" },
 	{ "pointlight", SL_SHADER_LIGHT, "intensity lightcolor from" },

@@ -748,6 +748,7 @@ static void compare_all_ways(const char *name, struct sl_program *surf, struct l
 
 static const char *const surfaces[] = {
 	"constant", "defaultsurface", "matte", "metal", "plastic", "paintedplastic", "shinymetal",
+	"hair",
 };
 #define NSURF (sizeof(surfaces) / sizeof(surfaces[0]))
 
@@ -1375,7 +1376,7 @@ static void test_deriv_library(void)
 		}
 		sl_program_destroy(p);
 	}
-	CHECK(lit >= 8);  /* matte, metal, plastic, paintedplastic, shinymetal: twice */
+	CHECK(lit >= 10);  /* matte, metal, plastic, paintedplastic, shinymetal, hair: twice */
 
 	/* plastic with editable parameters too: still only P */
 	struct sl_program *p = load("plastic");
