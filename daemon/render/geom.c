@@ -1572,6 +1572,23 @@ void reyes_patch_split(const struct reyes_patch *pa, bool along_u, struct reyes_
 	}
 }
 
+void reyes_bound_to_float(const double blo[3], const double bhi[3], float lo[3], float hi[3])
+{
+	double a[3], b[3], mag = 0.0;
+	for (int c = 0; c < 3; c++) {
+		bool empty = !(blo[c] <= bhi[c]);
+		a[c] = empty ? 0.0 : blo[c];
+		b[c] = empty ? 0.0 : bhi[c];
+		mag = fmax(mag, fmax(fabs(a[c]), fabs(b[c])));
+	}
+	/* Pad for the rounding of diced points to float. */
+	double pad = 1e-6 * mag + 1e-30;
+	for (int c = 0; c < 3; c++) {
+		lo[c] = sl_to_float(a[c] - pad);
+		hi[c] = sl_to_float(b[c] + pad);
+	}
+}
+
 void reyes_patch_bound(const struct reyes_patch *pa, int t, float lo[3], float hi[3])
 {
 	if (pa && pa->prim && pa->prim->kind == REYES_SUBDIV) {
@@ -1633,18 +1650,7 @@ void reyes_patch_bound(const struct reyes_patch *pa, int t, float lo[3], float h
 		blo[0] = pc.uoff + pc.uscale * fmin(u0, u1), bhi[0] = pc.uoff + pc.uscale * fmax(u0, u1);
 		blo[1] = pc.voff + pc.vscale * fmin(v0, v1), bhi[1] = pc.voff + pc.vscale * fmax(v0, v1);
 	}
-	/* Pad for the rounding of diced points to float. */
-	double mag = 0.0;
-	for (int c = 0; c < 3; c++) {
-		if (!(blo[c] <= bhi[c]))
-			blo[c] = bhi[c] = 0.0;
-		mag = fmax(mag, fmax(fabs(blo[c]), fabs(bhi[c])));
-	}
-	double pad = 1e-6 * mag + 1e-30;
-	for (int c = 0; c < 3; c++) {
-		lo[c] = sl_to_float(blo[c] - pad);
-		hi[c] = sl_to_float(bhi[c] + pad);
-	}
+	reyes_bound_to_float(blo, bhi, lo, hi);
 }
 
 /* ---- dicing ---- */

@@ -81,6 +81,13 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 
 /* ---- for the primitives diced in files of their own (geom_*.c) ---- */
 
+/**
+ * A bound computed in double as a float box that holds every point diced
+ * inside it once rounded to float (padded by a millionth of its largest
+ * coordinate); an empty or non-finite range becomes [0, 0], padded.
+ */
+void reyes_bound_to_float(const double blo[3], const double bhi[3], float lo[3], float hi[3]);
+
 /** Floats per item of a primitive variable (0 for strings). */
 size_t reyes_primvar_stride(const struct reyes_primvar *v);
 

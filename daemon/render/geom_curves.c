@@ -389,19 +389,9 @@ void reyes_curves_bound(const struct reyes_patch *pa, int t, float lo[3], float 
 		wlo = whi = 0.0;
 	/* The ribbon or disk lies within half its width of the centre. */
 	reach = 0.5 * fmax(fabs(wlo), fabs(whi)) * (c.point ? MAX_PUSH : 1.0);
-	double mag = 0.0;
-	for (int k = 0; k < 3; k++) {
+	for (int k = 0; k < 3; k++)
 		blo[k] -= reach, bhi[k] += reach;
-		if (!(blo[k] <= bhi[k]))
-			blo[k] = bhi[k] = 0.0;
-		mag = fmax(mag, fmax(fabs(blo[k]), fabs(bhi[k])));
-	}
-	/* Pad for the rounding of diced points to float. */
-	double pad = 1e-6 * mag + 1e-30;
-	for (int k = 0; k < 3; k++) {
-		lo[k] = sl_to_float(blo[k] - pad);
-		hi[k] = sl_to_float(bhi[k] + pad);
-	}
+	reyes_bound_to_float(blo, bhi, lo, hi);
 }
 
 /* ---- dicing ---- */

@@ -498,17 +498,7 @@ void reyes_nurbs_bound(const struct reyes_patch *pa, int t, float lo[3], float h
 			}
 		}
 	}
-	double mag = 0.0;
-	for (int q = 0; q < 3; q++) {
-		if (!(blo[q] <= bhi[q]))
-			blo[q] = bhi[q] = 0.0;
-		mag = fmax(mag, fmax(fabs(blo[q]), fabs(bhi[q])));
-	}
-	double pad = 1e-6 * mag + 1e-30;
-	for (int q = 0; q < 3; q++) {
-		lo[q] = sl_to_float(blo[q] - pad);
-		hi[q] = sl_to_float(bhi[q] + pad);
-	}
+	reyes_bound_to_float(blo, bhi, lo, hi);
 }
 
 /* ---- dicing ---- */

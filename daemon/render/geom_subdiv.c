@@ -331,7 +331,7 @@ void reyes_subdiv_bound(const struct reyes_patch *pa, int t, float lo[3], float 
 	if (!ok)
 		return;
 	double blo[3] = { INFINITY, INFINITY, INFINITY }, bhi[3] = { -INFINITY, -INFINITY, -INFINITY };
-	double bulge = 0.0, mag = 0.0;
+	double bulge = 0.0;
 	for (int k = 0; k < S * S; k++)
 		for (int c = 0; c < 3; c++) {
 			blo[c] = fmin(blo[c], P[3 * k + c]);
@@ -355,14 +355,8 @@ void reyes_subdiv_bound(const struct reyes_patch *pa, int t, float lo[3], float 
 		bhi[c] = fmin(bhi[c] + 2.0 * bulge, hhi[c]);
 		if (!(blo[c] <= bhi[c]))
 			blo[c] = hlo[c], bhi[c] = hhi[c];
-		mag = fmax(mag, fmax(fabs(blo[c]), fabs(bhi[c])));
 	}
-	/* Pad for the rounding of diced points to float. */
-	double pad = 1e-6 * mag + 1e-30;
-	for (int c = 0; c < 3; c++) {
-		lo[c] = sl_to_float(blo[c] - pad);
-		hi[c] = sl_to_float(bhi[c] + pad);
-	}
+	reyes_bound_to_float(blo, bhi, lo, hi);
 }
 
 /* ---- dicing ---- */
