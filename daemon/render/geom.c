@@ -1751,6 +1751,19 @@ static float *alloc_floats(size_t count, bool *failed)
 	return p;
 }
 
+bool reyes_grid_alloc(struct reyes_grid *g, uint32_t n, bool moving)
+{
+	bool failed = false;
+	g->P[0] = alloc_floats(3 * (size_t)n, &failed);
+	g->P[1] = moving ? alloc_floats(3 * (size_t)n, &failed) : g->P[0];
+	g->dPdu = alloc_floats(3 * (size_t)n, &failed);
+	g->dPdv = alloc_floats(3 * (size_t)n, &failed);
+	g->Ng = alloc_floats(3 * (size_t)n, &failed);
+	g->u = alloc_floats(n, &failed);
+	g->v = alloc_floats(n, &failed);
+	return !failed;
+}
+
 /* Position and derivatives (piece-local) at local (s, t) for a non-quadric piece. */
 static void piece_eval(const struct piece *pc, const double Q[4][3], const float *vals, double s,
 		       double t, double P[3], double ds[3], double dt[3])
@@ -1895,13 +1908,8 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 	d.s = malloc((size_t)(nu + nv) * sizeof(double));
 	d.wu = malloc((size_t)(nu + nv) * 8 * sizeof(double));
 	bool moving = pc.kind == PIECE_QUADRIC ? pc.qmoving : pc.P[1] != pc.P[0];
-	g->P[0] = alloc_floats(3 * (size_t)n, &failed);
-	g->P[1] = moving ? alloc_floats(3 * (size_t)n, &failed) : g->P[0];
-	g->dPdu = alloc_floats(3 * (size_t)n, &failed);
-	g->dPdv = alloc_floats(3 * (size_t)n, &failed);
-	g->Ng = alloc_floats(3 * (size_t)n, &failed);
-	g->u = alloc_floats(n, &failed);
-	g->v = alloc_floats(n, &failed);
+	if (!reyes_grid_alloc(g, n, moving))
+		failed = true;
 	if (failed || !d.s || !d.wu)
 		goto fail;
 	d.t = d.s + nu;

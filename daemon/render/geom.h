@@ -88,6 +88,13 @@ bool reyes_patch_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
  */
 void reyes_bound_to_float(const double blo[3], const double bhi[3], float lo[3], float hi[3]);
 
+/**
+ * The buffers every grid has, for @n points: P (P[1] its own only when
+ * @moving, else P[0]), dPdu, dPdv, Ng, u and v. False when memory runs out
+ * (what was allocated stays for reyes_grid_finish).
+ */
+bool reyes_grid_alloc(struct reyes_grid *g, uint32_t n, bool moving);
+
 /** Floats per item of a primitive variable (0 for strings). */
 size_t reyes_primvar_stride(const struct reyes_primvar *v);
 

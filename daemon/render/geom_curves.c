@@ -396,14 +396,6 @@ void reyes_curves_bound(const struct reyes_patch *pa, int t, float lo[3], float 
 
 /* ---- dicing ---- */
 
-static float *floats(size_t count, bool *failed)
-{
-	float *p = malloc((count ? count : 1) * sizeof(float));
-	if (!p)
-		*failed = true;
-	return p;
-}
-
 /*
  * Fill @dst (stride planes of nu * nv) with @v over the grid: one value per
  * row (a curve's primitive variables do not vary across its width; a
@@ -560,16 +552,8 @@ bool reyes_curves_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 		return false;
 	uint32_t n = nu * nv;
 	g->nu = nu, g->nv = nv, g->n = n;
-	bool failed = false;
 	double *rows = malloc(nv * sizeof(double));
-	g->P[0] = floats(3 * (size_t)n, &failed);
-	g->P[1] = c.moving ? floats(3 * (size_t)n, &failed) : g->P[0];
-	g->dPdu = floats(3 * (size_t)n, &failed);
-	g->dPdv = floats(3 * (size_t)n, &failed);
-	g->Ng = floats(3 * (size_t)n, &failed);
-	g->u = floats(n, &failed);
-	g->v = floats(n, &failed);
-	if (failed || !rows)
+	if (!reyes_grid_alloc(g, n, c.moving) || !rows)
 		goto fail;
 	for (uint32_t j = 0; j < nv; j++)
 		rows[j] = j == nv - 1 ? pa->v1 : pa->v0 + ((double)pa->v1 - pa->v0) * j / (nv - 1);

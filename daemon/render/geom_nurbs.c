@@ -651,14 +651,6 @@ static bool dice_var(const struct span *s, const struct ndice *d, const struct r
 	return true;
 }
 
-static float *nalloc(size_t count, bool *failed)
-{
-	float *p = malloc(count * sizeof(float));
-	if (!p)
-		*failed = true;
-	return p;
-}
-
 /* Where dPdu ^ dPdv vanishes (a pole), the normal a little way in towards the piece's middle. */
 static void fix_normal(const struct span *s, double u, double v, double N[3])
 {
@@ -702,18 +694,10 @@ bool reyes_nurbs_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 	g->nu = nu, g->nv = nv, g->n = n;
 	struct ndice d = { nu, nv, n, s.n->uorder - 1, s.n->vorder - 1, NULL, NULL, NULL, NULL,
 			   NULL, NULL };
-	bool failed = false;
 	bool moving = s.P[1] != s.P[0];
 	size_t wu = (size_t)nu * (d.pu + 1), wv = (size_t)nv * (d.pv + 1);
 	double *buf = malloc(sizeof(double) * (nu + nv + 2 * wu + 2 * wv));
-	g->P[0] = nalloc(3 * (size_t)n, &failed);
-	g->P[1] = moving ? nalloc(3 * (size_t)n, &failed) : g->P[0];
-	g->dPdu = nalloc(3 * (size_t)n, &failed);
-	g->dPdv = nalloc(3 * (size_t)n, &failed);
-	g->Ng = nalloc(3 * (size_t)n, &failed);
-	g->u = nalloc(n, &failed);
-	g->v = nalloc(n, &failed);
-	if (failed || !buf)
+	if (!reyes_grid_alloc(g, n, moving) || !buf)
 		goto fail;
 	d.u = buf, d.v = buf + nu;
 	d.Nu = d.v + nv, d.dNu = d.Nu + wu, d.Nv = d.dNu + wu, d.dNv = d.Nv + wv;

@@ -497,14 +497,7 @@ bool reyes_subdiv_dice(const struct reyes_patch *pa, uint32_t nu, uint32_t nv,
 	d.uv = uv;
 	bool moving = points_at(p, 1) != v0, failed = !uv || !P || !d.tmp;
 	g->nu = nu, g->nv = nv, g->n = n;
-	g->P[0] = malloc(3 * sizeof(float) * n);
-	g->P[1] = moving ? malloc(3 * sizeof(float) * n) : g->P[0];
-	g->dPdu = malloc(3 * sizeof(float) * n);
-	g->dPdv = malloc(3 * sizeof(float) * n);
-	g->Ng = malloc(3 * sizeof(float) * n);
-	g->u = malloc(sizeof(float) * n);
-	g->v = malloc(sizeof(float) * n);
-	failed |= !g->P[0] || !g->P[1] || !g->dPdu || !g->dPdv || !g->Ng || !g->u || !g->v;
+	failed |= !reyes_grid_alloc(g, n, moving);
 	if (!failed) {
 		double su = ((double)pa->u1 - pa->u0) / (nu - 1), sv = ((double)pa->v1 - pa->v0) / (nv - 1);
 		for (uint32_t j = 0; j < nv; j++)
