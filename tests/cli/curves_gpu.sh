@@ -16,30 +16,6 @@ max_max_pct=1.0
 
 cp "$source_dir/tests/cli/curves/hair.rib" "$source_dir/tests/cli/curves/hairs.rib" "$work/"
 
-# edit_rib IN OUT EDIT...: each EDIT is HANDLE.PARAM=V[,V...]; the LightSource
-# with that handle gets "PARAM" [V ...] (replacing the parameter if given).
-edit_rib() {
-	python3 - "$@" <<'PY'
-import re, sys
-src, dst, edits = sys.argv[1], sys.argv[2], sys.argv[3:]
-text = open(src).read()
-for e in edits:
-	lhs, vals = e.split("=", 1)
-	handle, param = lhs.split(".", 1)
-	vals = " ".join(vals.split(","))
-	m = re.search(r'LightSource\s+"[^"]+"\s+' + re.escape(handle) + r'\b', text)
-	if not m:
-		sys.exit("no LightSource " + handle)
-	end = re.compile(r'\n\s*[A-Z][A-Za-z]*\b').search(text, m.end())
-	end = end.start() if end else len(text)
-	req = text[m.start():end]
-	req = re.sub(r'\s*"' + re.escape(param) + r'"\s+(\[[^\]]*\]|\S+)', "", req)
-	req += ' "%s" [%s]' % (param, vals)
-	text = text[:m.start()] + req + text[end:]
-open(dst, "w").write(text)
-PY
-}
-
 # compare NAME REF IMG LIMIT-KIND: relight diff REF IMG, colour and alpha
 # within the limits (render) or the relative limit (cpu).
 compare() {
@@ -91,7 +67,7 @@ compare "preview --cpu vs render" ref.exr cpu.exr render
 edits=(2.intensity=30 2.lightcolor=1,0.8,0.6 3.from=-3,4,-1)
 sets=()
 for e in "${edits[@]}"; do sets+=(--set "$e"); done
-edit_rib "$work/hair.rib" "$work/edited.rib" "${edits[@]}" || fail "cannot edit hair.rib"
+set_light_params "$work/hair.rib" "$work/edited.rib" "${edits[@]}" || fail "cannot edit hair.rib"
 run "render edited" bash -c "cd '$work' && '$relight' render -q -o edited.exr edited.rib"
 expect_status 0
 run "preview --cpu edited" bash -c "cd '$work' && '$relight' preview -q --cpu ${sets[*]} -o cpu_edit.exr hair.shot.exr"

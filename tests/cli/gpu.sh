@@ -24,31 +24,6 @@ max_rel=1e-4
 max_mean_pct=0.1
 max_max_pct=1.0
 
-# edit_rib IN OUT EDIT...: each EDIT is HANDLE.PARAM=V[,V...]; the LightSource
-# with that handle gets "PARAM" [V ...] (replacing the parameter if given).
-edit_rib() {
-	python3 - "$@" <<'PY'
-import re, sys
-src, dst, edits = sys.argv[1], sys.argv[2], sys.argv[3:]
-text = open(src).read()
-for e in edits:
-	lhs, vals = e.split("=", 1)
-	handle, param = lhs.split(".", 1)
-	vals = " ".join(vals.split(","))
-	m = re.search(r'LightSource\s+"[^"]+"\s+' + re.escape(handle) + r'\b', text)
-	if not m:
-		sys.exit("no LightSource " + handle)
-	# the request runs until the next line that starts a request
-	end = re.compile(r'\n\s*[A-Z][A-Za-z]*\b').search(text, m.end())
-	end = end.start() if end else len(text)
-	req = text[m.start():end]
-	req = re.sub(r'\s*"' + re.escape(param) + r'"\s+(\[[^\]]*\]|\S+)', "", req)
-	req += ' "%s" [%s]' % (param, vals)
-	text = text[:m.start()] + req + text[end:]
-open(dst, "w").write(text)
-PY
-}
-
 # baked EXAMPLE RIB: a copy of the example folder with the RIB baked (once).
 baked() {
 	local ex=$1 rib=$2 dir="$work/$1"
@@ -88,7 +63,7 @@ gpu_case() {
 	[ "$status" -eq 0 ] || { fail "CPU preview failed (status $status)"; return; }
 	run "$name: gpu vs cpu" "$relight" diff --json "$dir/cpu.exr" "$dir/gpu.exr"
 	cp "$work/stdout" "$dir/vs_cpu.json"
-	edit_rib "$dir/$rib" "$dir/edited.rib" "$@" || { fail "cannot edit $rib"; return; }
+	set_light_params "$dir/$rib" "$dir/edited.rib" "$@" || { fail "cannot edit $rib"; return; }
 	local image
 	image=$(grep -m1 -oE 'Display "[^"]+" "file"' "$dir/$rib" | cut -d'"' -f2)
 	run "$name: render" bash -c "cd '$dir' && '$relight' render -q -o edited.exr edited.rib"

@@ -122,3 +122,29 @@ skip_without_gpu() {
 		exit 77
 	fi
 }
+
+# set_light_params IN OUT EDIT...: the RIB IN written as OUT with each EDIT,
+# HANDLE.PARAM=V[,V...], applied: the LightSource with that handle gets
+# "PARAM" [V ...] (replacing the parameter if given), as --set edits a light.
+set_light_params() {
+	python3 - "$@" <<'PY'
+import re, sys
+src, dst, edits = sys.argv[1], sys.argv[2], sys.argv[3:]
+text = open(src).read()
+for e in edits:
+	lhs, vals = e.split("=", 1)
+	handle, param = lhs.split(".", 1)
+	vals = " ".join(vals.split(","))
+	m = re.search(r'LightSource\s+"[^"]+"\s+' + re.escape(handle) + r'\b', text)
+	if not m:
+		sys.exit("no LightSource " + handle)
+	# the request runs until the next line that starts a request
+	end = re.compile(r'\n\s*[A-Z][A-Za-z]*\b').search(text, m.end())
+	end = end.start() if end else len(text)
+	req = text[m.start():end]
+	req = re.sub(r'\s*"' + re.escape(param) + r'"\s+(\[[^\]]*\]|\S+)', "", req)
+	req += ' "%s" [%s]' % (param, vals)
+	text = text[:m.start()] + req + text[end:]
+open(dst, "w").write(text)
+PY
+}
