@@ -17,6 +17,7 @@
 
 struct sl_exec;
 struct sl_tex_lookup;
+struct sl_ray_query;
 
 /** What the renderer (or a test) provides to a running shader. All callbacks may be NULL. */
 struct sl_host {
@@ -71,6 +72,27 @@ struct sl_host {
 	bool (*rendererinfo)(void *user, const char *name, int type, int arraylen, float *out,
 			     const char **sout);
 
+	/* ---- ray tracing (struct sl_ray_query) ---- */
+	/**
+	 * Cast @q->n rays and fill the outputs @q asks for. trace(),
+	 * transmission(), occlusion(), indirectdiffuse(), gather(),
+	 * environment("raytrace") and shadow("raytrace") all come here. NULL
+	 * (a host that cannot ray trace): those built-ins give what a ray that
+	 * hits nothing gives, with a warning at the call.
+	 */
+	bool (*trace)(void *user, struct sl_ray_query *q);
+	/**
+	 * rayinfo(): "depth" (float: 0 for a camera-ray shading, +1 per ray
+	 * level), "type" (string: "camera", "specular", "diffuse",
+	 * "transmission"), "speculardepth", "diffusedepth" (float), "origin",
+	 * "direction" (point, vector of the ray whose hit is shaded, "current"
+	 * space), "length" (float). raylevel() is rayinfo("depth") and
+	 * isshadowray() is rayinfo("type") == "transmission". False when the
+	 * host does not know @name (NULL: depth 0, type "camera").
+	 */
+	bool (*rayinfo)(void *user, const char *name, int type, int arraylen, float *out,
+			const char **sout);
+
 	/** printf() output; NULL prints to stdout. */
 	void (*print)(void *user, const char *text);
 
@@ -108,6 +130,57 @@ struct sl_tex_lookup {
 	float fill;                 /* [0] value of missing channels */
 	const char *filter;         /* ["gaussian"] */
 	float *out;                 /* nchannels planes with stride */
+};
+
+/** Which rays a query casts: what they may hit and how hits are shaded. */
+enum sl_ray_type {
+	SL_RAY_SPECULAR,     /* trace(), environment("raytrace"), gather(): reflection, refraction */
+	SL_RAY_DIFFUSE,      /* occlusion(), indirectdiffuse() */
+	SL_RAY_TRANSMISSION, /* transmission(), shadow("raytrace"): only opacity matters */
+	SL_RAY_TYPE_COUNT
+};
+
+/**
+ * A batch of rays for struct sl_host's trace. Rays are packed (ray k's
+ * origin at org[3k .. 3k + 2]), in "current" space, each from the shaded
+ * point that casts it. The host offsets each origin by the bias along its
+ * ray, finds what the ray reaches among the objects visible to its type
+ * within [0, maxdist], and fills the outputs that are not NULL.
+ */
+struct sl_ray_query {
+	enum sl_ray_type type;
+	uint32_t n;                /* rays */
+	const float *org;          /* 3n */
+	const float *dir;          /* 3n, any length but zero (normalized by the host) */
+	const float *maxdist;      /* n: distance along the normalized ray; NULL: unbounded */
+	const float *time;         /* n: in [0, 1] over the shutter; NULL: shutter open */
+	float bias;                /* < 0: the casting object's Attribute "trace" "bias" */
+	const char *subset;        /* "subset": only objects in these trace groups; NULL: all */
+	const char *hitmode;       /* "hitmode": "primitive", "shader"; NULL: the hit object's */
+	/*
+	 * Outputs, per ray. dist: the distance to the first hit, 1e30 where it
+	 * reaches nothing. Ci, Oi (3n each): the colour and opacity it brings
+	 * back: hits shaded as their hit mode says (the object's surface shader
+	 * with its lights, at ray depth + 1, or its Cs and Os), composited front
+	 * to back through semi-transparent hits until opaque (black, 0 where
+	 * nothing is hit). trans (3n): what reaches maxdist: the product of
+	 * (1 - Oi) over every hit in [0, maxdist] (1 where none).
+	 */
+	float *dist;
+	float *Ci, *Oi;
+	float *trans;
+	/*
+	 * gather()'s named values of each ray's first hit (packed, out_ncomp[i]
+	 * floats per ray in outs[i]): "surface:NAME" (the hit shader's output
+	 * parameter or global NAME after it ran), "primitive:NAME" (the hit
+	 * point's P, N, Ng, Cs, Os, s, t, u, v, in "current" space). Zero
+	 * where the ray reaches nothing or the hit has no such value. Names
+	 * the host does not know are zero too.
+	 */
+	uint32_t nouts;
+	const char *const *out_names;
+	const int *out_ncomp;
+	float *const *outs;
 };
 
 /**
