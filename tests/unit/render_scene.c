@@ -42,6 +42,15 @@ const char *tmp_path(const char *name)
 	return b;
 }
 
+bool scene_write_file(const char *name, const char *text)
+{
+	FILE *f = fopen(tmp_path(name), "w");
+	if (!f)
+		return false;
+	fputs(text, f);
+	return fclose(f) == 0;
+}
+
 static bool on_frame(void *user, const struct reyes_scene *scene)
 {
 	struct reyes_render_opts ro = { .threads = 2, .diag = user };

@@ -29,6 +29,9 @@ void scene_dir_remove(void);
 /* "tmpdir/NAME", in one of four rotating buffers. */
 const char *tmp_path(const char *name);
 
+/* Write @text to the file @name in the scratch folder (a shader, a map). */
+bool scene_write_file(const char *name, const char *text);
+
 /* Write @rib to a file and render it on two threads; the image named @out is
    read into @im. False when the scene has an error or the image is missing. */
 bool render(const char *rib, const char *out, struct reyes_image *im);

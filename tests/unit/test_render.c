@@ -440,16 +440,6 @@ static void test_shadow_map(void)
 	CHECK(umbra_nocast > 0.5);
 }
 
-/* Write @text to the file @name in the test folder. */
-static bool write_file(const char *name, const char *text)
-{
-	FILE *f = fopen(tmp_path(name), "w");
-	if (!f)
-		return false;
-	fputs(text, f);
-	return fclose(f) == 0;
-}
-
 /* Every pixel of channel @name of @im is @want within @tol; the worst error is printed. */
 static void check_flat(const struct reyes_image *im, const char *what, const char *name,
 		       double want, double tol)
@@ -500,7 +490,7 @@ static double bilinear_mix(int c, double X, double Y)
  */
 static void test_varying_primvars(void)
 {
-	CHECK(write_file("showvc.sl",
+	CHECK(scene_write_file("showvc.sl",
 			 "surface showvc(varying color vc = 0) { Oi = 1; Ci = vc; }\n"));
 	char bez_p[1024] = "", bez_c[1024] = "";
 	size_t lp = 0, lc = 0;
@@ -605,7 +595,7 @@ static void test_varying_primvars(void)
 	}
 
 	/* A uniform parameter takes the variable's value, every component of it. */
-	CHECK(write_file("showuc.sl",
+	CHECK(scene_write_file("showuc.sl",
 			 "surface showuc(uniform color uc = 0) { Oi = 1; Ci = uc; }\n"));
 	static const char *const uniform_prims[] = {
 		"Polygon \"P\" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] \"uniform color uc\" [0.2 0.4 0.6]",
@@ -850,7 +840,7 @@ static double bezier_height(const double z[16], double u, double v)
  */
 static void test_height_field(void)
 {
-	CHECK(write_file("showz.sl",
+	CHECK(scene_write_file("showz.sl",
 			 "surface showz() { Oi = 1; point Po = transform(\"object\", P);"
 			 " Ci = color(zcomp(Po)); }\n"));
 	static const double bl[4] = { 0, 1, 0.5, 0.25 };
@@ -1135,7 +1125,7 @@ static void test_environment_render(void)
 			ll.data[(y * 64 + x) * 3] = (y + 0.5f) / 32;
 	CHECK(reyes_image_write_exr(tmp_path("ll.exr"), &ll, false, NULL));
 	reyes_image_finish(&ll);
-	CHECK(write_file("showenv.sl",
+	CHECK(scene_write_file("showenv.sl",
 			 "surface showenv(string map = \"\") { Oi = 1;"
 			 " vector Nw = vtransform(\"world\", normalize(N));"
 			 " Ci = color environment(map, Nw); }\n"));

@@ -32,15 +32,6 @@ static bool rgba_channels(const struct reyes_image *im, int ch[4])
 	return ok;
 }
 
-static bool write_file(const char *name, const char *text)
-{
-	FILE *f = fopen(tmp_path(name), "w");
-	if (!f)
-		return false;
-	fputs(text, f);
-	return fclose(f) == 0;
-}
-
 /* ---- TextureCoordinates ------------------------------------------------------- */
 
 /* s, t at the corners (u, v) = (0, 0), (1, 0), (0, 1), (1, 1) */
@@ -64,7 +55,7 @@ static double tc_mix(int c, double u, double v)
  */
 static void test_texture_coordinates(void)
 {
-	CHECK(write_file("showst.sl",
+	CHECK(scene_write_file("showst.sl",
 			 "surface showst() { Oi = 1; Ci = color(s, t, 0); }\n"));
 	static const char *const prims[] = {
 		"Patch \"bilinear\" \"P\" [-1 -1 0  1 -1 0  -1 1 0  1 1 0]",
