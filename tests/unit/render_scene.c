@@ -60,11 +60,8 @@ static bool on_frame(void *user, const struct reyes_scene *scene)
 bool render(const char *rib, const char *out, struct reyes_image *im)
 {
 	const char *path = tmp_path("scene.rib");
-	FILE *f = fopen(path, "w");
-	if (!f)
+	if (!scene_write_file("scene.rib", rib))
 		return false;
-	fputs(rib, f);
-	fclose(f);
 	char *dbuf = NULL;
 	size_t dlen = 0;
 	FILE *diag = open_memstream(&dbuf, &dlen);
