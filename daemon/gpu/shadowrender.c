@@ -59,6 +59,7 @@
  * one invocation does at most MAX_PIXELS pixel tests.
  */
 #include "shadowrender.h"
+#include "shadowrender_impl.h"
 
 #include "log.h"
 
@@ -67,34 +68,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Indices and slots as float bits: value + IDX_BIAS, at most IDX_MAX + IDX_BIAS. */
-#define IDX_BIAS 0x00800000u
-#define IDX_MAX (0x7effffffu - IDX_BIAS)
-
 /* A micropolygon may test at most this many pixel centres; beyond it, it is left out. */
 #define MAX_PIXELS 65536
 
 /* Pixels per map at most (a 32-bit index, and far above any SSBO limit). */
 #define MAX_MAP_PIXELS (1u << 30)
 
-struct gpu_shadow_geometry {
-	struct gpu_ctx *ctx;
-	uint64_t npoints;
-	uint32_t nquads;             /* kept micropolygons */
-	uint32_t nslots;             /* distinct object ids */
-	uint32_t *slot_id;           /* the object id of each slot, ascending */
-	float *flags;                /* the cast flags last uploaded, per slot */
-	struct gpu_buffer *points;   /* R32F: x, y, z per point */
-	struct gpu_buffer *quads;    /* RGBA32F: 4 biased point indices per micropolygon */
-	struct gpu_buffer *slots;    /* R32F: biased slot per micropolygon */
-	struct gpu_buffer *casts;    /* R32F: flag per slot */
-	struct gpu_buffer *opacity;  /* R32F: opacity per micropolygon, or NULL */
-	struct gpu_buffer *scratch;  /* midpoint: 2 uint per pixel (second depth, count) */
-	size_t scratch_bytes;
-	size_t bytes;                /* GPU memory held, scratch included */
-	struct gpu_program *clear, *raster, *resolve;
-	struct gpu_program *deep_clear, *deep_raster, *deep_build, *deep_pack;
-};
 
 /* ---- shaders ---- */
 
@@ -508,8 +487,7 @@ static bool corner_ok(const float *P, uint64_t npoints, uint32_t v)
 	return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]);
 }
 
-/* A buffer of @bytes (at least 16, so that an empty table can still be bound). */
-static struct gpu_buffer *upload(struct gpu_shadow_geometry *g, size_t bytes, const void *data)
+struct gpu_buffer *gpu_shadow_upload(struct gpu_shadow_geometry *g, size_t bytes, const void *data)
 {
 	size_t size = bytes < 16 ? 16 : bytes;
 	struct gpu_buffer *b = gpu_buffer_create(g->ctx, size, bytes == size ? data : NULL);
@@ -615,12 +593,12 @@ struct gpu_shadow_geometry *gpu_shadow_geometry_create(struct gpu_ctx *ctx, cons
 		slot[q] = prev_slot + IDX_BIAS;
 	}
 
-	g->points = upload(g, (size_t)npoints * 3 * sizeof(float), P);
-	g->quads = upload(g, (size_t)kept * 4 * sizeof(uint32_t), idx);
-	g->slots = upload(g, (size_t)kept * sizeof(uint32_t), slot);
-	g->casts = upload(g, (size_t)nslots * sizeof(float), g->flags);
+	g->points = gpu_shadow_upload(g, (size_t)npoints * 3 * sizeof(float), P);
+	g->quads = gpu_shadow_upload(g, (size_t)kept * 4 * sizeof(uint32_t), idx);
+	g->slots = gpu_shadow_upload(g, (size_t)kept * sizeof(uint32_t), slot);
+	g->casts = gpu_shadow_upload(g, (size_t)nslots * sizeof(float), g->flags);
 	if (op)
-		g->opacity = upload(g, (size_t)kept * sizeof(float), op);
+		g->opacity = gpu_shadow_upload(g, (size_t)kept * sizeof(float), op);
 	if (!g->points || !g->quads || !g->slots || !g->casts || (op && !g->opacity)) {
 		snprintf(err, errlen, "shadow geometry: cannot upload %llu points and %llu "
 			 "micropolygons", (unsigned long long)npoints, (unsigned long long)kept);
@@ -645,6 +623,8 @@ void gpu_shadow_geometry_destroy(struct gpu_shadow_geometry *g)
 {
 	if (!g)
 		return;
+	gpu_buffer_destroy(g->bvh_tris);
+	gpu_buffer_destroy(g->bvh_nodes);
 	gpu_buffer_destroy(g->scratch);
 	gpu_buffer_destroy(g->opacity);
 	gpu_buffer_destroy(g->casts);
@@ -675,7 +655,7 @@ static bool programs(struct gpu_shadow_geometry *g)
 }
 
 /* Upload the per-slot cast flags when they changed. */
-static bool set_casts(struct gpu_shadow_geometry *g, const float *casts, uint32_t ncasts)
+bool gpu_shadow_set_casts(struct gpu_shadow_geometry *g, const float *casts, uint32_t ncasts)
 {
 	bool changed = false;
 	for (uint32_t i = 0; i < g->nslots; i++) {
@@ -737,7 +717,7 @@ bool gpu_shadow_geometry_render(struct gpu_ctx *ctx, struct gpu_shadow_geometry 
 		g->scratch_bytes = 2 * need;
 		g->bytes += g->scratch_bytes;
 	}
-	if (!programs(g) || !set_casts(g, casts, ncasts))
+	if (!programs(g) || !gpu_shadow_set_casts(g, casts, ncasts))
 		return false;
 
 	/* The map's camera z of a world point is column 2 of world_to_camera. */
@@ -879,7 +859,7 @@ struct gpu_buffer *gpu_shadow_geometry_render_deep(struct gpu_ctx *ctx,
 		snprintf(err, errlen, "deep shadow map: a matrix is not finite");
 		return NULL;
 	}
-	if (!programs(g) || !deep_programs(g) || !set_casts(g, casts, ncasts)) {
+	if (!programs(g) || !deep_programs(g) || !gpu_shadow_set_casts(g, casts, ncasts)) {
 		snprintf(err, errlen, "deep shadow map: its programs do not build or run");
 		return NULL;
 	}

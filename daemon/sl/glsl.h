@@ -201,4 +201,24 @@ void sl_glsl_param_uniform(char *out, size_t cap, int light, const char *name);
  */
 void sl_glsl_space_uniform(char *out, size_t cap, int light, const char *param);
 
+/*
+ * Ray-traced shadows. sl_glsl_bvh_source is GLSL defining
+ *   float rl_bvh_transmission(samplerBuffer nodes, samplerBuffer tris,
+ *                             samplerBuffer casts, vec3 org, vec3 dir, float tmax)
+ * the light that gets through the shadow geometry along org + t dir for t in
+ * (0, tmax) (t in units of dir, which need not be normalized): the product
+ * of 1 - opacity over the triangles hit there whose object casts. The
+ * layout it reads (gpu/shadowbvh.c writes it), all RGBA32F texels but casts
+ * (R32F), indices as their value plus 0x00800000 in a float's bits:
+ *   nodes: two texels a node, depth first from the root (node 0), a node's
+ *     first child right after it: (lower x, y, z, a), (upper x, y, z,
+ *     count); count 0: an inner node whose second child is node a; else a
+ *     leaf of triangles a .. a + count - 1.
+ *   tris: three texels a triangle: (v0, object slot), (v1 - v0, opacity),
+ *     (v2 - v0, 0), world space.
+ *   casts: per object slot, 0 where the object casts no shadow.
+ * An empty nodes buffer lets all light through.
+ */
+extern const char sl_glsl_bvh_source[];
+
 #endif
