@@ -36,6 +36,7 @@
 #include "resolve.h"
 #include "shadowmap.h"
 #include "shadowrender.h"
+#include "shadowbvh.h"
 #include "shotfile.h"
 #include "shotmeta.h"
 #include "strbuf.h"
@@ -103,6 +104,7 @@ struct light {
 	uint32_t cast_version, rendered_version;
 	bool follow;               /* the maps' cameras follow the light's from and to */
 	bool warned_deep;          /* said that a deep map cannot be rendered again */
+	bool warned_rt;            /* said that its ray-traced shadow cannot be previewed */
 	float follow_key[6];       /* the from and to the maps were last rendered for */
 	/* per shadow site, while some object does not cast: the map rendered
 	 * from the shadow geometry without them, and its depths */
@@ -189,6 +191,8 @@ struct gpu_shot {
 	struct gpu_ifb *ifb;
 	uint32_t *pick;            /* per pixel: the object of its heaviest sample (UINT32_MAX: none) */
 	struct gpu_shadow_geometry *shadow_geo;  /* NULL: the shot has none */
+	bool shadow_bvh;           /* shadow_geo's ray-tracing hierarchy is built */
+	float trace_bias;          /* ray-traced shadows' start offset without a "bias" option */
 	struct gpu_deep_stats deep_stats;        /* of the last deep map rendered or tried */
 	uint32_t deep_maps_rendered;
 	uint64_t level_entries[NBANDS];
@@ -647,6 +651,23 @@ static bool bind_maps(struct gpu_shot *s, const struct kernel *k, const struct l
 			return fail(s, "cannot bind the shadow map of a kernel");
 		b[*nb].unit = SL_GLSL_SHADOW_UNIT0 + i;
 		(*nb)++;
+		if (k->layout.shadows[i].raytrace) {
+			char u[64];
+			snprintf(u, sizeof(u), "u_shadow%u_rt", i);
+			bool rt = maps && L && L->map_names && L->map_names[i] && s->shadow_bvh &&
+				  !strcmp(L->map_names[i], "raytrace");
+			gpu_uniform_int(k->prog, u, rt ? 1 : 0);
+		}
+	}
+	if (k->layout.bvh_unit) {
+		gpu_uniform_float(k->prog, "u_trace_bias", &s->trace_bias, 1);
+		if (!s->shadow_bvh ||
+		    !gpu_shadow_bvh_bind(s->shadow_geo, k->layout.bvh_unit, L ? L->cast_cpu : NULL,
+					 L ? s->nobjects : 0, &b[*nb]))
+			for (uint32_t j = 0; j < 3; j++)
+				b[*nb + j] = (struct gpu_binding){ k->layout.bvh_unit + j, false, s->zero,
+								   j < 2 };
+		*nb += 3;
 	}
 	return bind_texmaps(s, k, L, st, b, nb);
 }
@@ -687,7 +708,7 @@ static bool shade_pass(struct gpu_shot *s, struct light *L, const struct lstate 
 			set_spaces(s, k->prog, L, st, 0);
 		}
 		gpu_uniform_mat4(k->prog, "space_world", s->w2c);
-		struct gpu_binding b[2 + 64];
+		struct gpu_binding b[2 + 64 + 3];
 		uint32_t nb = 0;
 		b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 		b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
@@ -1087,6 +1108,28 @@ static bool render_deep(struct gpu_shot *s, struct light *L, uint32_t i, const f
 	return true;
 }
 
+/*
+ * The shadow geometry's ray-tracing hierarchy, built on first use (a light
+ * whose shadow map is named "raytrace"). False when the shot has no shadow
+ * geometry or the hierarchy cannot be built (said on diag).
+ */
+static bool shadow_hierarchy(struct gpu_shot *s)
+{
+	if (s->shadow_bvh)
+		return true;
+	if (!s->shadow_geo)
+		return false;
+	char err[512];
+	size_t before = gpu_shadow_geometry_bytes(s->shadow_geo);
+	if (!gpu_shadow_bvh_build(s->shadow_geo, err, sizeof(err))) {
+		fprintf(s->diag, "relight: warning: %s: %s\n", s->path, err);
+		return false;
+	}
+	s->bytes += gpu_shadow_geometry_bytes(s->shadow_geo) - before;
+	s->shadow_bvh = true;
+	return true;
+}
+
 /* A light's shadow-map node: the maps its kernels' shadow() sites read. */
 static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 {
@@ -1122,7 +1165,14 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 		gpu_shadow_map_destroy(L->maps[i]);
 		L->maps[i] = NULL;
 		*changed = true;
-		if (name[0]) {
+		if (site->raytrace && !strcmp(name, "raytrace")) {
+			if (!shadow_hierarchy(s) && !L->warned_rt) {
+				fprintf(s->diag, "relight: warning: light '%s': its ray-traced shadow is "
+					"not previewed (the shot has no shadow geometry to trace: bake "
+					"it again)\n", L->name);
+				L->warned_rt = true;
+			}
+		} else if (name[0]) {
 			char err[512];
 			L->maps[i] = gpu_shadow_map_load(s->ctx, s->tex, name, err, sizeof(err));
 			if (!L->maps[i])
@@ -1834,7 +1884,7 @@ static bool warm_up(struct gpu_shot *s, int only)
 				? &sf->base : &sf->bk[k - s->nlshaders - 1];
 			if (!kk->prog)
 				continue;
-			struct gpu_binding b[2 + 64];
+			struct gpu_binding b[2 + 64 + 3];
 			uint32_t nb = 0;
 			b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 			b[nb++] = (struct gpu_binding){ 1, true, s->scratch };
@@ -1991,6 +2041,7 @@ struct gpu_shot *gpu_shot_open(struct gpu_ctx *ctx, const char *path,
 	s->budget = opts && opts->budget ? opts->budget : DEFAULT_BUDGET;
 	s->shader_path = opts && opts->shader_path ? rl_xstrdup(opts->shader_path) : NULL;
 	s->solo = -1;
+	s->trace_bias = GPU_TRACE_BIAS;
 	s->graph = graph_create();
 	double t0 = rl_now_ms();
 	char err[1024] = "";
@@ -2876,7 +2927,7 @@ bool gpu_shot_profile(struct gpu_shot *s, const char *light, struct gpu_shot_pro
 		if (sf->nparamsets)
 			set_uniforms(k->prog, &k->layout, sf->spec->dynamic, &sf->pvals[0], -1);
 		gpu_uniform_int(k->prog, "u_first", 0);
-		struct gpu_binding b[2 + 64];
+		struct gpu_binding b[2 + 64 + 3];
 		uint32_t nb = 0;
 		b[nb++] = (struct gpu_binding){ 0, false, sf->records, true };
 		b[nb++] = (struct gpu_binding){ 1, true, s->scratch };

@@ -15,6 +15,10 @@
 
 #include "shadowrender.h"
 
+/* A ray-traced shadow's start offset along its ray when its shadow() gives no "bias":
+ * the renderer's default Attribute "trace" "bias". */
+#define GPU_TRACE_BIAS 0.01f
+
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>

@@ -2051,7 +2051,8 @@ int sl_glsl_shadow_site(struct glsl_gen *g, const struct sl_insn *in)
 	if (!site_name(g, in, &param, &name))
 		return -1;
 	uint32_t k = (uint32_t)g->sites.len;
-	struct sl_glsl_shadow_site site = { p->light, param, name };
+	struct sl_glsl_shadow_site site = { p->light, param, name,
+					    p->light >= 0 && (param || !strcmp(name, "raytrace")) };
 	rl_vec_push(g->sites, site);
 	p->site[pc] = (int32_t)k;
 	struct rl_strbuf *u = &g->sec[GS_UNIFORMS];
@@ -2064,6 +2065,8 @@ int sl_glsl_shadow_site(struct glsl_gen *g, const struct sl_insn *in)
 	rl_strbuf_printf(u, "uniform mat4 u_shadow%u_to_ndc;\n", k);
 	rl_strbuf_printf(u, "uniform float u_shadow%u_bias;\n", k);
 	rl_strbuf_printf(u, "uniform int u_shadow%u_deep;\n", k);
+	if (site.raytrace)
+		rl_strbuf_printf(u, "uniform int u_shadow%u_rt;\n", k);
 	return (int)k;
 }
 
@@ -2303,6 +2306,18 @@ static void fill_sites(struct glsl_gen *g, struct sl_glsl_layout *layout)
 static void fill_map_sites(struct glsl_gen *g, struct sl_glsl_layout *layout)
 {
 	size_t n = g->msites.len;
+	bool rt = false;
+	for (size_t i = 0; i < g->sites.len; i++)
+		rt |= g->sites.data[i].raytrace;
+	if (rt) {
+		layout->bvh_unit = SL_GLSL_SHADOW_UNIT0 + (uint32_t)(g->sites.len + n);
+		rl_strbuf_printf(&g->sec[GS_UNIFORMS],
+				 "layout(binding = %u) uniform samplerBuffer u_bvh_nodes;\n"
+				 "layout(binding = %u) uniform samplerBuffer u_bvh_tris;\n"
+				 "layout(binding = %u) uniform samplerBuffer u_bvh_casts;\n"
+				 "uniform float u_trace_bias;\n", layout->bvh_unit,
+				 layout->bvh_unit + 1, layout->bvh_unit + 2);
+	}
 	if (!n)
 		return;
 	for (size_t i = 0; i < n; i++)

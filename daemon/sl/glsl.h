@@ -15,7 +15,7 @@
 
 /** The part of a program to emit, and where its data comes from. */
 /** Bumped whenever the generated code changes for the same input. */
-#define SL_GLSL_GENERATOR_VERSION 5
+#define SL_GLSL_GENERATOR_VERSION 6
 
 struct sl_slice {
 	const struct sl_program *prog;
@@ -78,6 +78,14 @@ struct sl_glsl_shadow_site {
 	int light;                 /* the light (0 .. nlights - 1) whose code calls it; -1: the slice */
 	const char *param;         /* the string parameter of that shader naming the map, or NULL */
 	const char *name;          /* with no @param: the constant map name */
+	/*
+	 * The site is in a light and its map may be named "raytrace": the
+	 * uniform int "u_shadow<k>_rt", when not 0, makes it a ray-traced
+	 * shadow through the shadow geometry's hierarchy (sl_glsl_bvh_source,
+	 * at the layout's bvh_unit), its start moved by the shadow()'s "bias"
+	 * or else the uniform float "u_trace_bias".
+	 */
+	bool raytrace;
 };
 
 /** The texture unit of shadow() site 0; site k uses SL_GLSL_SHADOW_UNIT0 + k. */
@@ -121,6 +129,10 @@ struct sl_glsl_layout {
 	 * SL_GLSL_SHADOW_UNIT0 + nshadows + k by its sampler uniform. */
 	struct sl_glsl_map_site *maps;
 	uint32_t nmaps;
+	/* With a raytrace site: the texture unit of the hierarchy's nodes
+	 * ("u_bvh_nodes"; its triangles at + 1, "u_bvh_tris", and its cast
+	 * flags at + 2, "u_bvh_casts"), after the maps'. 0: none. */
+	uint32_t bvh_unit;
 };
 
 /**

@@ -723,6 +723,25 @@ struct helper {
 	uint8_t deps[3];   /* helpers it calls (0: none; GH_CORE is always there) */
 };
 
+/*
+ * shadow("raytrace", P) in a light (see the renderer's reyes_trace.c): the
+ * shadowed fraction of the segment from P to the light's position (the
+ * light's Ps - L), in world space, its start moved @bias along it (the
+ * default when not a length), through the shadow geometry's hierarchy.
+ * A segment shorter than the bias is not shadowed.
+ */
+static const char rtshadow_glsl[] =
+	"float rl_rt_shadow(samplerBuffer nodes, samplerBuffer tris, samplerBuffer casts,\n"
+	"\t\tmat4 tow, vec3 p, vec3 light, float bias, float defbias) {\n"
+	"\tvec3 a = rl_dxpoint(tow, p), d = rl_dxpoint(tow, light) - a;\n"
+	"\tfloat len = length(d);\n"
+	"\tif (!(len > 0.0) || isinf(len)) return 0.0;\n"
+	"\tfloat b = bias >= 0.0 && !isinf(bias) ? bias : defbias;\n"
+	"\tif (!(b < len)) return 0.0;\n"
+	"\tvec3 dn = d / len;\n"
+	"\treturn 1.0 - rl_bvh_transmission(nodes, tris, casts, a + b * dn, dn, len - b);\n"
+	"}\n";
+
 static const struct helper helpers[GH_COUNT] = {
 	[GH_CORE] = { core_glsl, { 0 } },
 	[GH_MATDIV] = { matdiv_glsl, { GH_INVERSE } },
@@ -743,13 +762,14 @@ static const struct helper helpers[GH_COUNT] = {
 	[GH_DERIV] = { deriv_glsl, { GH_FILTERSTEP } },
 	[GH_SHADOW] = { shadow_glsl, { GH_DERIV, GH_NOISE } },
 	[GH_TEXMAP] = { sl_glsl_texmap_src, { GH_DERIV } },
+	[GH_RTSHADOW] = { rtshadow_glsl, { GH_SHADOW } },
 };
 
 /* Output order: every helper after the ones it calls. */
 static const uint8_t helper_order[GH_COUNT] = {
 	GH_CORE, GH_MATH, GH_VEC, GH_AIDX, GH_CIDX, GH_INVERSE, GH_MATDIV, GH_XFORM, GH_NOISE,
 	GH_GEOM, GH_FRESNEL, GH_SPECBRDF, GH_CONE, GH_COLOR, GH_SPLINE, GH_FILTERSTEP, GH_DERIV,
-	GH_SHADOW, GH_TEXMAP,
+	GH_SHADOW, GH_TEXMAP, GH_RTSHADOW,
 };
 
 void sl_glsl_need(struct glsl_gen *g, enum glsl_helper h)
@@ -774,6 +794,8 @@ void sl_glsl_emit_helpers(struct glsl_gen *g)
 			rl_strbuf_printf(b, specbrdf_glsl, rispec ? "1.0" : "8.0");
 			continue;
 		}
+		if (h == GH_RTSHADOW)
+			rl_strbuf_puts(b, sl_glsl_bvh_source);
 		rl_strbuf_puts(b, helpers[h].text);
 		if (h != GH_MATH)
 			continue;
@@ -1859,6 +1881,19 @@ static void call_shadow(struct glsl_gen *g, const struct sl_insn *in)
 				    "%s, %s, %s, %s, %s, %s, %s, %s, %s, %s)", site, site, site, site, site,
 				    site, site, c[0], c[1], c[2], c[3], hasc, center, sw, tw, sb, tb,
 				    samples, bias, fill);
+	if (g->sites.data[site].raytrace) {
+		/* the map name may be "raytrace": the light's position is its Ps - L */
+		int32_t rl = prog->global_reg[SL_GLOBAL_L], rps = prog->global_reg[SL_GLOBAL_PS];
+		if (rl < 0 || rps < 0) {
+			sl_glsl_error(g, in, "shadow(\"raytrace\") outside an illuminate or solar "
+				      "statement: no light position to trace toward");
+			return;
+		}
+		sl_glsl_need(g, GH_RTSHADOW);
+		e = SL_GLSL_FMT(g, "(u_shadow%d_rt != 0 ? rl_rt_shadow(u_bvh_nodes, u_bvh_tris, "
+				"u_bvh_casts, u_to_world, %s, %s - %s, %s, u_trace_bias) : %s)", site,
+				op(g, a[2], 3), op(g, rps, 3), op(g, rl, 3), bias, e);
+	}
 	set_dst(g, in, ncomp(g, in->dst) == 3 ? SL_GLSL_FMT(g, "vec3(%s)", e) : e);
 }
 

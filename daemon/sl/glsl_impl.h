@@ -34,6 +34,7 @@ enum glsl_helper {
 	GH_DERIV,       /* derivative stencils: corners, area, normals, filterstep widths */
 	GH_SHADOW,      /* shadow(): the renderer's depth map filter */
 	GH_TEXMAP,      /* texture(), environment() of named maps (glsl_texmap.c) */
+	GH_RTSHADOW,    /* shadow("raytrace"): the shadow geometry's hierarchy (glsl_bvh.c) */
 	GH_COUNT
 };
 
