@@ -164,6 +164,10 @@ int cmd_info(int argc, char **argv)
 	const cJSON *sg = cJSON_GetObjectItemCaseSensitive(meta, "shadow_geometry");
 	bool shadow_opacity = cJSON_IsString(cJSON_GetObjectItemCaseSensitive(sg, "opacity"));
 	cJSON_AddNumberToObject(out, "shadow_bytes", shadow_bytes);
+	/* ray-traced shadows on the GPU: 48 bytes a triangle, two a micropolygon,
+	   and fewer than two 32-byte nodes a triangle (gpu/shadowbvh.h) */
+	double rt_bytes = num(fig, "shadow_quads") * 2 * (48 + 2 * 32);
+	cJSON_AddNumberToObject(out, "shadow_bvh_bytes_max", rt_bytes);
 	cJSON_AddBoolToObject(out, "shadow_opacity", shadow_opacity);
 
 	if (json) {
@@ -205,6 +209,9 @@ int cmd_info(int argc, char **argv)
 			       shadow_opacity ? "with their opacity for deep maps"
 					      : "no opacity (deep maps are not rendered from it)",
 			       shadow_bytes);
+		if (num(fig, "shadow_quads") > 0)
+			printf("ray-traced shadows: a hierarchy of at most %.0f bytes in GPU memory "
+			       "once a light's shadow is \"raytrace\"\n", rt_bytes);
 		printf("refinement levels:\n");
 		int k = 0;
 		cJSON_ArrayForEach(l, levels) {

@@ -82,7 +82,10 @@ static void usage(FILE *out)
 		"                       deep_maps_rendered and, of the last one, deep_hits,\n"
 		"                       deep_max_texel_hits, deep_nodes, deep_map_bytes and\n"
 		"                       deep_scratch_bytes (deep shadow maps rendered from the\n"
-		"                       shadow geometry) and graph (the computation graph's\n"
+		"                       shadow geometry), shadow_bvh_bytes, shadow_bvh_nodes\n"
+		"                       and shadow_bvh_triangles (the hierarchy ray-traced\n"
+		"                       shadows trace, 0 when no light's shadow is \"raytrace\")\n"
+		"                       and graph (the computation graph's\n"
 		"                       nodes and their runs)\n"
 		"  -q, --quiet          No summary\n"
 		"  -h, --help           Show this help and exit\n"
@@ -244,6 +247,10 @@ static int preview_gpu(const char *shot, const char *output, int level,
 		       "%u, \"deep_nodes\": %llu, \"deep_map_bytes\": %zu, \"deep_scratch_bytes\": %zu",
 		       ndeep, (unsigned long long)ds.hits, ds.max_hits,
 		       (unsigned long long)ds.nodes, ds.bytes, ds.scratch_bytes);
+		uint32_t bnodes, btris;
+		size_t bbytes = gpu_shot_shadow_bvh(s, &bnodes, &btris);
+		printf(", \"shadow_bvh_bytes\": %zu, \"shadow_bvh_nodes\": %u, "
+		       "\"shadow_bvh_triangles\": %u", bbytes, bnodes, btris);
 		printf(", \"output\": \"%s\", \"graph\": ", output);
 		graph_print_json(gpu_shot_graph(s), stdout);
 		printf("}\n");

@@ -2287,6 +2287,13 @@ size_t gpu_shot_bytes(const struct gpu_shot *s)
 	return b;
 }
 
+size_t gpu_shot_shadow_bvh(const struct gpu_shot *s, uint32_t *nodes, uint32_t *tris)
+{
+	size_t bytes = 0;
+	gpu_shadow_bvh_stats(s ? s->shadow_geo : NULL, nodes, tris, &bytes);
+	return bytes;
+}
+
 uint32_t gpu_shot_deep_stats(const struct gpu_shot *s, struct gpu_deep_stats *last)
 {
 	if (last)

@@ -223,6 +223,12 @@ struct gpu_deep_stats;
 uint32_t gpu_shot_deep_stats(const struct gpu_shot *s, struct gpu_deep_stats *last);
 
 /**
+ * The ray-traced shadows' hierarchy over the shadow geometry: its GPU bytes
+ * (0 until a light's shadow is "raytrace"), and its nodes and triangles.
+ */
+size_t gpu_shot_shadow_bvh(const struct gpu_shot *s, uint32_t *nodes, uint32_t *tris);
+
+/**
  * Set surface parameter @param, baked as editable (`relight bake
  * --dynamic-surface`), to @values on every object whose surface shader is
  * @shader (checked as light values are). The light cache is summed again.
