@@ -155,9 +155,10 @@ bool cmd_parse_light_edit_text(char *arg, const char **light, const char **param
 	*text = eq + 1;
 	if (numbers)
 		return true;
-	/* not numbers: a string, unless it is a number gone wrong ("1x", "1,,2", "") */
+	/* not numbers: a string (nothing: the empty one, no map), unless it is a
+	   number gone wrong ("1x", "1,,2") */
 	const char *t = *text;
-	bool numeric = !t[0] || strchr("0123456789+-.,", t[0]);
+	bool numeric = t[0] && strchr("0123456789+-.,", t[0]);
 	if (numeric && strncmp(t, "./", 2) && strncmp(t, "../", 3))
 		return false;
 	*n = 0;

@@ -167,6 +167,9 @@ bad_edit crowd crowd.rib 3.lightcolor=1,2 \
 # one value broadcasts to a colour only, not to a point
 bad_edit crowd crowd.rib 4.from=1 \
 	"^crowd.rib:22: error: --set 4.from: .* is a point and takes 3 values, not 1$"
+# nothing after '=' is the empty string: not a float
+bad_edit crowd crowd.rib 3.intensity= \
+	"^crowd.rib:20: error: --set 3.intensity: parameter 'intensity' of shader 'spotlight' is a float and needs numbers, not ''$"
 bad_edit crowd crowd.rib 3.intensity=nan \
 	"^crowd.rib:20: error: --set 3.intensity: parameter 'intensity' needs finite values, not nan$"
 bad_edit crowd crowd.rib 3.lightcolor=1,inf,1 "^crowd.rib:20: error: --set 3.lightcolor: .* needs finite values"
@@ -193,7 +196,6 @@ bad_usage() {
 
 bad_usage 3.intensity
 bad_usage 3intensity=1
-bad_usage 3.intensity=
 bad_usage .intensity=1
 bad_usage 3.=1
 bad_usage 3.intensity=1,
