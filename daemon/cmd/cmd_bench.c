@@ -22,6 +22,7 @@
 #include "plot.h"
 #include "runtime.h"
 #include "scenes.h"
+#include "rays.h"
 #include "shotfile.h"
 #include "stability.h"
 #include "texture.h"
@@ -74,6 +75,10 @@ static void usage(FILE *out)
 		"cache drift over 100,000 edits, intensities 1e-4 to 1e4, grazing and\n"
 		"degenerate geometry, long transparency chains, filter weights at 16x16\n"
 		"samples, half-float channels against float; each check has a tolerance.\n"
+		"Then rays per second: one shadow ray from each of 1024 x 1024 floor points\n"
+		"(--quick: 256 x 256) through 100 spheres (409,600 triangles; --quick: 25),\n"
+		"traced by Embree on every core and by the GPU's shadow kernel, and the rays\n"
+		"the two answer differently.\n"
 		"\n"
 		"Options:\n"
 		"  -o, --out DIR        Write the report DIR/report.md, and its figures\n"
@@ -84,7 +89,7 @@ static void usage(FILE *out)
 		"  --quick              A small run: 5 edits, 1, 4 and 16 lights at 480x270,\n"
 		"                       the stability suite's quick mode, 10 latency edits\n"
 		"  --only PARTS         Only these parts, comma-separated: examples, lights,\n"
-		"                       latency, stability\n"
+		"                       latency, stability, rays\n"
 		"  --stability          The stability suite alone (as --only stability)\n"
 		"  --examples DIR       Where the examples are (default: ./examples when it\n"
 		"                       exists, else the source tree's)\n"
@@ -109,7 +114,8 @@ static void usage(FILE *out)
 
 #define usage_error(...) cmd_usage_error("bench", __VA_ARGS__)
 
-enum { PART_EXAMPLES = 1, PART_LIGHTS = 2, PART_LATENCY = 4, PART_STABILITY = 8, PART_ALL = 15 };
+enum { PART_EXAMPLES = 1, PART_LIGHTS = 2, PART_LATENCY = 4, PART_STABILITY = 8, PART_RAYS = 16,
+       PART_ALL = 31 };
 
 struct bench_cfg {
 	bool json, quick, quiet;
@@ -171,6 +177,8 @@ struct bench {
 	struct stab_check checks[MAX_CHECKS];
 	int nchecks;
 	bool stab_ran;
+	struct bench_rays rays;
+	bool rays_ran;
 	bool failed, no_gpu;
 	char failures[2048];
 };
@@ -964,6 +972,24 @@ static cJSON *json_results(const struct bench *b, int argc, char **argv)
 		}
 	}
 
+	if (b->rays_ran) {
+		const struct bench_rays *r = &b->rays;
+		cJSON *o = cJSON_AddObjectToObject(j, "rays");
+		add_num(o, "triangles", r->triangles);
+		add_num(o, "rays", r->rays);
+		add_num(o, "threads", r->threads);
+		add_num(o, "embree_build_s", r->embree_build_s);
+		add_num(o, "embree_s", r->embree_s);
+		add_num(o, "embree_rays_per_s", r->embree_rays_per_s);
+		add_num(o, "occluded", (double)r->occluded);
+		if (b->ctx) {
+			add_num(o, "gpu_build_s", r->gpu_build_s);
+			add_num(o, "gpu_s", r->gpu_s);
+			add_num(o, "gpu_rays_per_s", r->gpu_rays_per_s);
+			add_num(o, "gpu_bytes", (double)r->gpu_bytes);
+			add_num(o, "disagree", (double)r->disagree);
+		}
+	}
 	if (b->stab_ran) {
 		cJSON *s = cJSON_AddObjectToObject(j, "stability");
 		cJSON_AddBoolToObject(s, "quick", b->c.quick);
@@ -1088,6 +1114,19 @@ static void print_text(FILE *f, const struct bench *b)
 			fprintf(f, "  %-7d %12.2f %12.2f %10.2f\n", c->lights, c->cache_total,
 				c->nocache_total, c->nocache_total / c->cache_total);
 		}
+		fputc('\n', f);
+	}
+	if (b->rays_ran) {
+		const struct bench_rays *r = &b->rays;
+		fprintf(f, "rays: %u shadow rays through %u triangles (%llu blocked)\n"
+			"  Embree, %u threads: %.3g rays/s (built in %.3f s)\n", r->rays, r->triangles,
+			(unsigned long long)r->occluded, r->threads, r->embree_rays_per_s,
+			r->embree_build_s);
+		if (b->ctx)
+			fprintf(f, "  GPU shadow kernel: %.3g rays/s (hierarchy of %.1f MB built in "
+				"%.3f s); %llu rays answered otherwise than Embree\n", r->gpu_rays_per_s,
+				(double)r->gpu_bytes * 1e-6, r->gpu_build_s,
+				(unsigned long long)r->disagree);
 		fputc('\n', f);
 	}
 	if (b->stab_ran) {
@@ -1360,6 +1399,25 @@ static void write_markdown(FILE *f, const struct bench *b, const cJSON *j)
 		fprintf(f, "\n![Cache compression](report/compression.svg)\n\n");
 	}
 
+	if (b->rays_ran) {
+		const struct bench_rays *r = &b->rays;
+		fprintf(f, "## Rays per second\n\nOne shadow ray from each of %u floor points to a "
+			"light, through %u triangles (spheres of 64 x 32 micropolygons, cut in two as "
+			"the hider cuts them; %llu rays blocked), traced by Embree (`rtcOccluded1`, "
+			"%u threads: the renderer's ray tracer) and by the GPU's shadow kernel "
+			"(`daemon/gpu/shadowbvh.h`: the hierarchy ray-traced shadows follow an edited "
+			"light with; device: %s). The error that goes with the speed: the rays the GPU "
+			"answers otherwise than Embree.\n\n| tracer | build s | trace s | rays/s | "
+			"rays answered otherwise |\n|---|--:|--:|--:|--:|\n| Embree | %.3f | %.3f | "
+			"%.3g | (reference) |\n", r->rays, r->triangles,
+			(unsigned long long)r->occluded, r->threads, b->device, r->embree_build_s,
+			r->embree_s, r->embree_rays_per_s);
+		if (b->ctx)
+			fprintf(f, "| GPU shadow kernel | %.3f | %.3f | %.3g | %llu of %u |\n",
+				r->gpu_build_s, r->gpu_s, r->gpu_rays_per_s,
+				(unsigned long long)r->disagree, r->rays);
+		fputc('\n', f);
+	}
 	if (b->stab_ran) {
 		int count[3] = { 0, 0, 0 };
 		for (int i = 0; i < b->nchecks; i++)
@@ -1384,6 +1442,22 @@ static void write_markdown(FILE *f, const struct bench *b, const cJSON *j)
 	}
 	if (b->failures[0])
 		fprintf(f, "## Failures\n\n%s\n", b->failures);
+}
+
+/* ---- rays per second ---- */
+
+static void bench_ray_rates(struct bench *b)
+{
+	uint32_t side = b->c.quick ? 256 : 1024;
+	uint32_t threads = (uint32_t)sysconf(_SC_NPROCESSORS_ONLN);
+	char err[512] = "";
+	note(b, "rays: %u shadow rays through %s spheres, Embree on %u threads%s", side * side,
+	     b->c.quick ? "25" : "100", threads, b->ctx ? " and the GPU" : "");
+	if (!bench_rays(b->ctx, b->c.quick, side, threads, &b->rays, err, sizeof(err))) {
+		fail(b, "rays: %s", err);
+		return;
+	}
+	b->rays_ran = true;
 }
 
 /* ---- the command ---- */
@@ -1462,11 +1536,11 @@ static int list_examples(const struct bench_cfg *c, char **names, int cap)
 static int parse_parts(const char *s, unsigned *parts)
 {
 	*parts = 0;
-	static const char *const names[] = { "examples", "lights", "latency", "stability" };
+	static const char *const names[] = { "examples", "lights", "latency", "stability", "rays" };
 	while (*s) {
 		size_t n = strcspn(s, ",");
 		bool found = false;
-		for (unsigned i = 0; i < 4; i++)
+		for (unsigned i = 0; i < 5; i++)
 			if (strlen(names[i]) == n && !strncmp(s, names[i], n)) {
 				*parts |= 1u << i;
 				found = true;
@@ -1523,7 +1597,7 @@ int cmd_bench(int argc, char **argv)
 		case 'O':
 			if (parse_parts(optarg, &c->parts) != 0)
 				return usage_error("--only: '%s': expected parts among examples, "
-						   "lights, latency, stability", optarg);
+						   "lights, latency, stability, rays", optarg);
 			break;
 		case 'S':
 			c->parts = PART_STABILITY;
@@ -1677,6 +1751,8 @@ int cmd_bench(int argc, char **argv)
 		bench_light_counts(b);
 	if (c->parts & PART_STABILITY)
 		bench_stability(b);
+	if (c->parts & PART_RAYS)
+		bench_ray_rates(b);
 	for (int k = 0; k < nnames; k++)
 		free(names[k]);
 

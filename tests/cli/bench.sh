@@ -114,4 +114,22 @@ PY
 }
 expect_true "the JSON's figures" check_json
 expect_true "no NaN in the report" bash -c "! grep -qiE 'nan|inf[^o]' '$out/report/report.json'"
+
+# rays per second: Embree and the GPU's shadow kernel on the same rays, and
+# how many they answer differently (at most 1 in 10,000)
+run "quick rays" "$relight" bench --quick --json --only rays -o "$work/rays" --work "$work/rw"
+expect_status 0
+expect_true "report.md has the rays" grep -q '^## Rays per second' "$work/rays/report.md"
+checks=$((checks + 1))
+python3 - "$work/stdout" <<'PY' || fail "the rays' figures"
+import json, sys
+r = json.load(open(sys.argv[1]))["rays"]
+print("rays: %d through %d triangles, %d blocked; Embree %.3g rays/s, GPU %.3g rays/s, "
+      "%d answered otherwise" % (r["rays"], r["triangles"], r["occluded"],
+      r["embree_rays_per_s"], r["gpu_rays_per_s"], r["disagree"]))
+assert r["rays"] == 65536 and r["triangles"] == 102400
+assert 0.2 * r["rays"] < r["occluded"] < 0.8 * r["rays"]
+assert r["embree_rays_per_s"] > 0 and r["gpu_rays_per_s"] > 0 and r["gpu_bytes"] > 0
+assert r["disagree"] <= r["rays"] / 10000
+PY
 finish
