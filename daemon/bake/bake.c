@@ -139,6 +139,15 @@ static struct group *new_group(struct bake *b, const struct reyes_shader *surf)
 		free(dyn);
 		return NULL;
 	}
+	/* ray-traced light the bake keeps: say it does not follow edits */
+	uint32_t frozen = sl_program_report_frozen_rays(prog, b->diag, b->o->strict);
+	for (uint32_t i = 0; i < frozen; i++)
+		reyes_render_warned();
+	if (frozen && b->o->strict) {
+		sl_spec_destroy(spec);
+		free(dyn);
+		return NULL;
+	}
 	/* the GPU preview adds lights one at a time: say where that does not hold */
 	if (sl_program_report_nonaffine(prog, b->diag, b->o->strict)) {
 		if (b->o->strict) {

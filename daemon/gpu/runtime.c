@@ -2749,6 +2749,24 @@ bool gpu_shot_read_srgb8(struct gpu_shot *s, int level, uint32_t *px)
  * as the CPU resolver does, without derivative stencils (filter regions of
  * one point): what is run here needs no exact shadows.
  */
+/* Rays while measuring: they reach nothing (the cost of shading is measured, not its light). */
+static bool measure_trace(void *user, struct sl_ray_query *q)
+{
+	(void)user;
+	for (uint32_t k = 0; k < q->n; k++)
+		for (int c = 0; c < 3; c++) {
+			if (q->dist && c == 0)
+				q->dist[k] = 1e30f;
+			if (q->Ci)
+				q->Ci[3 * k + (uint32_t)c] = 0;
+			if (q->Oi)
+				q->Oi[3 * k + (uint32_t)c] = 0;
+			if (q->trans)
+				q->trans[3 * k + (uint32_t)c] = 1;
+		}
+	return true;
+}
+
 static bool run_cpu(struct gpu_shot *s, struct surface *sf, const float *rec, uint32_t n,
 		    struct light *const *lights, uint32_t nl, float *ci, uint64_t *ops)
 {
@@ -2778,6 +2796,7 @@ static bool run_cpu(struct gpu_shot *s, struct surface *sf, const float *rec, ui
 		lh.space_mats = (const float (*)[16])s->w2c;
 		lh.nspaces = 1;
 		reyes_tex_serve(&lh, s->tex);
+		lh.host.trace = measure_trace;
 		sl_exec_count_ops(x, ops != NULL);
 		for (uint32_t i = 0; i < nl; i++)
 			sl_exec_count_ops(lx[i], ops != NULL);

@@ -18,6 +18,8 @@
  * geometry.
  */
 #include "reyes.h"
+#include "reyes_impl.h"
+#include "reyes_trace.h"
 #include "imager.h"
 #include "geom.h"
 #include "nurbs.h"
@@ -101,21 +103,6 @@ static void xform_normals(float *dst, const float *src, uint32_t n, const float 
 
 /* ---- the camera ---- */
 
-struct camera {
-	float w2c[16];          /* world -> camera (at shutter open) */
-	float w2c1[16];         /* at shutter close */
-	bool moving;            /* w2c1 differs from w2c */
-	float lens[2];          /* depth of field: the aperture's radius in pixels at distance 1 */
-	float focus;            /* 1 / the focal distance */
-	float lens_screen;      /* the aperture's radius in screen units at distance 1 */
-	float c2w[16];
-	float c2ndc[16];        /* camera -> NDC (projective) */
-	float screen[4];        /* l r b t */
-	bool perspective;
-	float focal;            /* 1 / tan(fov / 2) */
-	float xres, yres;
-	float near, far;
-};
 
 static void setup_camera(struct camera *cam, const struct reyes_options *o)
 {
@@ -226,100 +213,6 @@ static inline bool to_raster(const struct camera *cam, float x, float y, float z
 
 /* ---- grid jobs ---- */
 
-struct shaded {
-	struct reyes_hider_grid hg;
-	float *mem;             /* everything the hider grid points into */
-};
-
-struct job {
-	struct reyes_patch piece;
-	uint32_t nu, nv;        /* vertices */
-	float bx0, by0, bx1, by1; /* raster bound (motion and displacement included) */
-	uint32_t row0, row1;    /* bucket rows touched */
-	struct shaded *sh;
-};
-
-struct aov {
-	const char *name;
-	int ncomp;
-	uint32_t offset;        /* first plane in the hider's aov channels */
-};
-
-struct render;
-
-/* Per-thread state: executors by shader instance, light executors, a hider. */
-struct tctx {
-	struct render *r;
-	struct reyes_hider *hider;
-	struct exec_entry {
-		const struct reyes_shader *sh;
-		struct sl_exec *x;
-	} *execs;
-	size_t nexecs, capexecs;
-	struct sl_exec **light_x;        /* per scene light, created on first use */
-	struct sl_lighthost lh;
-	struct sl_exec **lights_on;      /* scratch: the executors of a grid's lights */
-	float (*light_mats)[16];         /* scratch: their shader spaces */
-	uint64_t grids, points, samples;
-	float *bucket_rgba, *bucket_z, *bucket_aov;
-	struct reyes_deep_scratch deep;  /* deep shadow pixels' scratch */
-	bool failed;
-};
-
-struct render {
-	const struct reyes_scene *scene;
-	const struct reyes_render_opts *o;
-	FILE *diag;
-	struct camera cam;
-	uint32_t px0, px1, py0, py1;     /* pixels rendered (crop) */
-	float margin;                    /* filter margin in pixels */
-	uint32_t bucket, nbx, nby;
-	uint32_t max_points;
-	struct job *jobs;
-	size_t njobs, capjobs;
-	struct aov *aovs;
-	size_t capaov;
-	uint32_t naov, naov_planes;
-	struct reyes_texsys *tex;
-	struct reyes_shader default_surface;
-	struct sl_program *default_prog;
-	float (*light_mats)[16];         /* per scene light: its shader space -> camera */
-	/* the image */
-	float *rgba, *z, *aov;
-	/* a deepshad display's: per pixel its visibility function, built to deep_error */
-	struct reyes_deep_pixel *deep;
-	float deep_error;
-	/* work sharing */
-	atomic_size_t next;
-	size_t *todo;
-	size_t ntodo;
-	size_t *active;                  /* the shaded jobs the current row touches */
-	size_t nactive;
-	uint32_t row;
-	struct tctx *ctx;
-	uint32_t nthreads;
-	uint64_t dropped;                /* pieces given up at the eye plane */
-	atomic_bool failed;
-	/*
-	 * Dicing only (reyes_dice): keep what the camera cannot see (measured
-	 * by the size of a pixel at its distance), and dice at @rate instead of
-	 * each primitive's ShadingRate when it is positive.
-	 */
-	bool keep_unseen;
-	float rate;
-	/*
-	 * The memory guard: the limit, the bytes the frame takes whatever is
-	 * diced (images, buckets), and, as pieces are queued, the micropolygons
-	 * their ShadingRate asks for, spread over the bucket rows they span,
-	 * and the jobs they will split into.
-	 */
-	uint64_t limit;
-	double fixed_bytes, job_bytes, total_points;
-	double *row_points;              /* nby: points alive while the row is rendered */
-	double row_most;                 /* the largest of them, in row row_fullest */
-	uint32_t row_fullest;
-	bool predicted;                  /* inside a piece already counted */
-};
 
 /* Bytes per shaded point: the hider's grid (x y z at both times, Ci, Oi) and AOVs. */
 static double point_bytes(const struct render *r)
@@ -349,7 +242,7 @@ static void loc_error(const struct render *r, struct rib_loc loc, const char *fm
 
 /* ---- bounding and splitting ---- */
 
-static void obj_to_camera(const struct render *r, const struct reyes_attrs *a, int t,
+void reyes_obj_to_camera(const struct render *r, const struct reyes_attrs *a, int t,
 			  float m[16])
 {
 	sl_m44_mul(m, a->object_to_world[a->moving ? t : 0], t ? r->cam.w2c1 : r->cam.w2c);
@@ -399,7 +292,7 @@ static enum bound_result piece_bound(const struct render *r, const struct reyes_
 	for (int t = 0; t < 2; t++) {
 		float lo[3], hi[3], m[16];
 		reyes_patch_bound(pa, t, lo, hi);
-		obj_to_camera(r, a, t, m);
+		reyes_obj_to_camera(r, a, t, m);
 		float grow = 0;
 		if (a->displacement && a->displacement_bound > 0)
 			grow = a->displacement_bound * max_scale(m);
@@ -484,7 +377,7 @@ static bool piece_extent(const struct render *r, const struct reyes_patch *pa, f
 	bool ok = true;
 	for (int t = 0; t < times && ok; t++) {
 		float m[16];
-		obj_to_camera(r, pa->prim->attrs, t, m);
+		reyes_obj_to_camera(r, pa->prim->attrs, t, m);
 		float rx[TT], ry[TT];
 		for (int k = 0; k < TT; k++) {
 			float p[3] = { g.P[t][k], g.P[t][TT + k], g.P[t][2 * TT + k] }, c[3];
@@ -553,7 +446,7 @@ static bool piece_extent_unseen(const struct render *r, const struct reyes_patch
 		return false;
 	const struct camera *cam = &r->cam;
 	float m[16];
-	obj_to_camera(r, pa->prim->attrs, 0, m);
+	reyes_obj_to_camera(r, pa->prim->attrs, 0, m);
 	float c[TT][3], dist[TT];
 	for (int k = 0; k < TT; k++) {
 		float p[3] = { g.P[0][k], g.P[0][TT + k], g.P[0][2 * TT + k] };
@@ -585,7 +478,6 @@ static bool piece_extent_unseen(const struct render *r, const struct reyes_patch
 	return true;
 }
 
-static void split_piece(struct render *r, const struct reyes_patch *pa);
 
 /* What the frame needs beyond its fixed part: the fullest bucket row's points and the jobs. */
 static double working_bytes(const struct render *r)
@@ -677,8 +569,8 @@ static void queue_piece(struct render *r, const struct reyes_patch *pa, float lu
 		reyes_patch_split(pa, lu >= lv, half);
 		bool outer = !r->predicted;
 		r->predicted = true;
-		split_piece(r, &half[0]);
-		split_piece(r, &half[1]);
+		reyes_split_piece(r, &half[0]);
+		reyes_split_piece(r, &half[1]);
 		r->predicted = !outer;
 		return;
 	}
@@ -692,7 +584,7 @@ static void queue_piece(struct render *r, const struct reyes_patch *pa, float lu
 }
 
 /* Split a piece until it can be diced in one grid, then queue it. */
-static void split_piece(struct render *r, const struct reyes_patch *pa)
+void reyes_split_piece(struct render *r, const struct reyes_patch *pa)
 {
 	if (atomic_load(&r->failed))
 		return;
@@ -700,7 +592,7 @@ static void split_piece(struct render *r, const struct reyes_patch *pa)
 	enum bound_result br = piece_bound(r, pa, rb, &zmin);
 	if (r->keep_unseen) {
 		float lu = 0, lv = 0;
-		if (br == B_OK && piece_extent(r, pa, &lu, &lv)) {
+		if (!r->orient_free && br == B_OK && piece_extent(r, pa, &lu, &lv)) {
 			queue_piece(r, pa, lu, lv, rb);
 		} else if (piece_extent_unseen(r, pa, &lu, &lv)) {
 			rb[0] = rb[1] = rb[2] = rb[3] = 0;
@@ -719,8 +611,8 @@ static void split_piece(struct render *r, const struct reyes_patch *pa)
 		}
 		struct reyes_patch half[2];
 		reyes_patch_split(pa, pa->depth % 2 == 0, half);
-		split_piece(r, &half[0]);
-		split_piece(r, &half[1]);
+		reyes_split_piece(r, &half[0]);
+		reyes_split_piece(r, &half[1]);
 		return;
 	}
 	float lu = 0, lv = 0;
@@ -732,8 +624,8 @@ static void split_piece(struct render *r, const struct reyes_patch *pa)
 		}
 		struct reyes_patch half[2];
 		reyes_patch_split(pa, pa->depth % 2 == 0, half);
-		split_piece(r, &half[0]);
-		split_piece(r, &half[1]);
+		reyes_split_piece(r, &half[0]);
+		reyes_split_piece(r, &half[1]);
 		return;
 	}
 	queue_piece(r, pa, lu, lv, rb);
@@ -855,13 +747,6 @@ static void get_global(struct sl_exec *x, enum sl_global gl, float *dst, int nc,
 			dst[(size_t)c * n + k] = !d ? 0 : vary ? d[(size_t)c * st + k] : d[c];
 }
 
-/* Camera-space data of a grid being shaded. */
-struct cgrid {
-	uint32_t nu, nv, n;
-	float *P0, *P1, *N, *Ng, *dPdu, *dPdv, *I, *s, *t, *Cs, *Os;
-	const float *u, *v;
-	float du, dv;
-};
 
 static void fill_globals(struct tctx *t, struct sl_exec *x, const struct cgrid *c,
 			 const struct reyes_attrs *a)
@@ -913,12 +798,6 @@ static void fill_globals(struct tctx *t, struct sl_exec *x, const struct cgrid *
 	}
 }
 
-/* Spaces a shader may name, as matrices to camera ("current") space. */
-struct spaces {
-	const char *names[64];
-	float mats[64][16];
-	int n;
-};
 
 static void add_space(struct spaces *sp, const char *name, const float m[16])
 {
@@ -1043,6 +922,18 @@ static bool host_rendererinfo(void *user, const char *name, int type, int arrayl
 	return false;
 }
 
+static bool host_trace(void *user, struct sl_ray_query *q)
+{
+	return reyes_rt_trace(((struct sl_lighthost *)user)->owner, q);
+}
+
+static bool host_rayinfo(void *user, const char *name, int type, int arraylen, float *out,
+			 const char **sout)
+{
+	return reyes_rt_rayinfo(((struct sl_lighthost *)user)->owner, name, type, arraylen, out,
+				sout);
+}
+
 static void setup_host(struct tctx *t, struct sl_exec **lights, int nlights,
 		       const float (*mats)[16], const struct spaces *sp)
 {
@@ -1058,6 +949,8 @@ static void setup_host(struct tctx *t, struct sl_exec **lights, int nlights,
 	t->lh.host.textureinfo = host_textureinfo;
 	t->lh.host.option = host_option;
 	t->lh.host.rendererinfo = host_rendererinfo;
+	t->lh.host.trace = host_trace;
+	t->lh.host.rayinfo = host_rayinfo;
 	t->lh.host.specular_model = t->r->scene->opts.specular_model;
 }
 
@@ -1116,7 +1009,7 @@ static void texture_coordinates(struct cgrid *c, const struct reyes_grid *g, con
  * success the caller frees c->P0 (one buffer holds all of @c's planes) and
  * finishes @g; on failure nothing is left to free.
  */
-static bool dice_job(struct tctx *t, const struct job *job, struct reyes_grid *g,
+bool reyes_dice_job(struct tctx *t, const struct job *job, struct reyes_grid *g,
 		     struct cgrid *cg)
 {
 	struct render *r = t->r;
@@ -1143,8 +1036,8 @@ static bool dice_job(struct tctx *t, const struct job *job, struct reyes_grid *g
 	c.s = buf + 21 * n;
 	c.t = buf + 22 * n;
 	float m0[16], m1[16], nm[9];
-	obj_to_camera(r, a, 0, m0);
-	obj_to_camera(r, a, 1, m1);
+	reyes_obj_to_camera(r, a, 0, m0);
+	reyes_obj_to_camera(r, a, 1, m1);
 	normal_matrix(nm, m0);
 	xform_points(c.P0, g->P[0], n, m0);
 	xform_points(c.P1, g->P[1] ? g->P[1] : g->P[0], n, m1);
@@ -1201,12 +1094,13 @@ fail:
 }
 
 /* Run surface shader @surf over the grid @g, @c with the primitive's lights; *@sx ran it. */
-static bool shade_surface(struct tctx *t, const struct reyes_attrs *a,
+bool reyes_shade_surface(struct tctx *t, const struct reyes_attrs *a,
 			  const struct reyes_shader *surf, const struct reyes_grid *g,
 			  const struct cgrid *c, struct sl_exec **sx)
 {
 	struct render *r = t->r;
 	struct spaces sp;
+	t->shading = a;
 	*sx = exec_for(t, surf);
 	if (!*sx)
 		return false;
@@ -1231,7 +1125,7 @@ static bool shade_job(struct tctx *t, struct job *job)
 	const struct reyes_attrs *a = prim->attrs;
 	struct reyes_grid g = { 0 };
 	struct cgrid c;
-	if (!dice_job(t, job, &g, &c))
+	if (!reyes_dice_job(t, job, &g, &c))
 		return false;
 	uint32_t n = g.n;
 	float *buf = c.P0;
@@ -1251,7 +1145,7 @@ static bool shade_job(struct tctx *t, struct job *job)
 	/* surface: a matte object is not shaded (RISpec), it is opaque and adds nothing */
 	const struct reyes_shader *surf = a->surface ? a->surface : &r->default_surface;
 	struct sl_exec *sx = NULL;
-	if (!a->matte && !shade_surface(t, a, surf, &g, &c, &sx)) {
+	if (!a->matte && !reyes_shade_surface(t, a, surf, &g, &c, &sx)) {
 		ok = false;
 		goto done;
 	}
@@ -1807,6 +1701,7 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	double t0 = now();
 	struct render r = { 0 };
 	r.scene = scene;
+	pthread_mutex_init(&r.rt_lock, NULL);
 	r.o = opts;
 	r.diag = opts->diag ? opts->diag : stderr;
 	const struct reyes_options *so = &scene->opts;
@@ -1881,13 +1776,14 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 	struct reyes_patch *pieces = NULL;
 	size_t np = 0, capp = 0;
 	for (uint32_t p = 0; ok && p < scene->nprims; p++) {
-		if (shadow_pass && !scene->prims[p].attrs->casts_shadows)
+		if (shadow_pass ? !scene->prims[p].attrs->casts_shadows
+				: !scene->prims[p].attrs->ray.camera)
 			continue;
 		np = 0;
 		if (!reyes_prim_pieces(&scene->prims[p], &pieces, &np, &capp))
 			continue;
 		for (size_t k = 0; k < np; k++)
-			split_piece(&r, &pieces[k]);
+			reyes_split_piece(&r, &pieces[k]);
 	}
 	free(pieces);
 	if (atomic_load(&r.failed))
@@ -1966,12 +1862,14 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 		progress(&r, r.row + 1, r.nby, t0);
 	}
 
-	uint64_t grids = 0, points = 0, samples = 0;
+	uint64_t grids = 0, points = 0, samples = 0, rays = 0;
 	for (uint32_t i = 0; r.ctx && i < r.nthreads; i++) {
 		struct tctx *t = &r.ctx[i];
 		grids += t->grids;
 		points += t->points;
 		samples += t->samples;
+		for (const struct tctx *s = t; s; s = s->sub)
+			rays += s->rays;
 	}
 	/* the imager sees the filtered pixels; exposure comes after it */
 	if (ok && !opts->bake && so->imager && !reyes_scene_is_shadow_pass(scene)) {
@@ -1988,6 +1886,8 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 		stats->grids = grids;
 		stats->micropolygons = points;
 		stats->samples = samples;
+		stats->rays = rays;
+		stats->ray_bytes = reyes_rt_bytes(r.rt);
 		stats->peak_bytes = peak_rss();
 		stats->width = so->xres;
 		stats->height = so->yres;
@@ -1997,6 +1897,7 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 		free_shaded(&r.jobs[i]);
 	for (uint32_t i = 0; r.ctx && i < r.nthreads; i++) {
 		struct tctx *t = &r.ctx[i];
+		reyes_rt_free_sub(t);
 		reyes_hider_destroy(t->hider);
 		for (size_t k = 0; k < t->nexecs; k++)
 			sl_exec_destroy(t->execs[k].x);
@@ -2015,6 +1916,8 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
 		free(r.deep[i].zt);
 	free(r.deep);
 	free(r.ctx);
+	reyes_rt_destroy(r.rt);
+	pthread_mutex_destroy(&r.rt_lock);
 	free(r.todo);
 	free(r.active);
 	free(r.jobs);
@@ -2035,7 +1938,7 @@ bool reyes_render(const struct reyes_scene *scene, const struct reyes_render_opt
  * keeps, 1 per kept micropolygon, into *keep (NULL when not trimmed).
  * False when memory runs out.
  */
-static bool trim_keep(const struct reyes_prim *prim, const struct reyes_grid *g, uint8_t **keep)
+bool reyes_trim_keep(const struct reyes_prim *prim, const struct reyes_grid *g, uint8_t **keep)
 {
 	const struct reyes_trim *trim = prim->nurbs ? prim->nurbs->trim : NULL;
 	uint32_t nu = g->nu, nv = g->nv;
@@ -2076,6 +1979,7 @@ bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *o
 		return false;
 	}
 	r.scene = scene;
+	r.rt_tried = true;          /* dicing alone casts no rays */
 	ro.diag = r.diag;
 	ro.texture_path = opts->texture_path;
 	r.o = &ro;
@@ -2116,7 +2020,7 @@ bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *o
 		/* one primitive at a time: the jobs never outgrow its pieces */
 		r.njobs = 0;
 		for (size_t k = 0; k < np; k++)
-			split_piece(&r, &pieces[k]);
+			reyes_split_piece(&r, &pieces[k]);
 		if (atomic_load(&r.failed)) {
 			fprintf(r.diag, "relight: error: out of memory dicing primitive %u\n",
 				prim->id);
@@ -2125,14 +2029,14 @@ bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *o
 		for (size_t i = 0; ok && i < r.njobs; i++) {
 			struct reyes_grid g = { 0 };
 			struct cgrid c;
-			if (!dice_job(&t, &r.jobs[i], &g, &c)) {
+			if (!reyes_dice_job(&t, &r.jobs[i], &g, &c)) {
 				fprintf(r.diag, "relight: error: dicing or displacement failed "
 					"(primitive %u)\n", prim->id);
 				ok = false;
 				break;
 			}
 			uint8_t *keep;
-			if (!trim_keep(prim, &g, &keep)) {
+			if (!reyes_trim_keep(prim, &g, &keep)) {
 				fprintf(r.diag, "relight: error: out of memory dicing primitive %u\n",
 					prim->id);
 				ok = false;

@@ -75,6 +75,8 @@ struct reyes_stats {
 	uint64_t grids;            /* grids shaded */
 	uint64_t micropolygons;    /* points shaded */
 	uint64_t samples;          /* subpixel samples taken */
+	uint64_t rays;             /* rays cast (Embree intersections) */
+	uint64_t ray_bytes;        /* the scene rays saw: grids kept for shading hits, Embree's */
 	uint64_t peak_bytes;       /* peak resident memory of the process */
 	uint32_t width, height;
 };

@@ -279,6 +279,11 @@ static void attrs_init(struct attrstate *a)
 	a->shading_rate = 1;
 	a->dbound_space = "object";
 	a->casts_shadows = true;
+	a->ray = (struct reyes_ray_attrs){
+		.camera = true, .transmission = REYES_TRANS_OS,
+		.hitmode = { REYES_HIT_SHADER, REYES_HIT_PRIMITIVE, REYES_HIT_SHADER },
+		.bias = 0.01f, .max_specular_depth = 2, .max_diffuse_depth = 1,
+	};
 	memcpy(a->ubasis, bezier, sizeof(bezier));
 	memcpy(a->vbasis, bezier, sizeof(bezier));
 	a->ustep = a->vstep = 3;
@@ -343,6 +348,7 @@ const struct reyes_attrs *reyes_ri_make_bundle(struct ri *ri, const struct xform
 	b->displacement_bound = a->dbound;
 	b->displacement_bound_space = a->dbound_space;
 	b->casts_shadows = a->casts_shadows;
+	b->ray = a->ray;
 	b->matte = a->matte;
 	if (a->has_texcoords) {
 		float *tc = rl_arena_alloc(ri->world, sizeof(a->texcoords));
@@ -455,6 +461,10 @@ static void req_attribute(struct ri *ri, const struct rib_request *r)
 	bool identifier = strcmp(name, "identifier") == 0;
 	bool dbound = strcmp(name, "displacementbound") == 0;
 	bool visibility = strcmp(name, "visibility") == 0;
+	if (!strcmp(name, "shade") || !strcmp(name, "trace")) {
+		reyes_ri_trace_attribute(ri, r, name);
+		return;
+	}
 	if (!identifier && !dbound && !visibility) {
 		reyes_ri_warn(ri, r->loc, "unknown attribute '%s' ignored", name);
 		return;
@@ -483,11 +493,37 @@ static void req_attribute(struct ri *ri, const struct rib_request *r)
 			a->objset |= OBJ_DBOUND;
 		} else if (visibility && strcmp(pname, "transmission") == 0 && (num1 || str1)) {
 			/* Numbers 0/1, or the older strings "opaque", "transparent", "Os", "shader". */
-			a->casts_shadows = num1 ? v->nums[0] != 0 : strcmp(v->strs[0], "transparent") != 0;
+			const char *m = str1 ? v->strs[0] : NULL;
+			if (m && strcmp(m, "opaque") && strcmp(m, "transparent") && strcmp(m, "Os") &&
+			    strcmp(m, "shader")) {
+				reyes_ri_warn(ri, p->loc, "visibility \"transmission\" \"%s\" is not "
+					      "\"opaque\", \"transparent\", \"Os\" or \"shader\": "
+					      "ignored", m);
+				continue;
+			}
+			if (m && !strcmp(m, "shader"))
+				reyes_ri_warn(ri, p->loc, "visibility \"transmission\" \"shader\": "
+					      "shadow rays see the primitive's Os, not its shader's Oi");
+			a->casts_shadows = num1 ? v->nums[0] != 0 : strcmp(m, "transparent") != 0;
+			a->ray.transmission = num1 ? (v->nums[0] != 0 ? REYES_TRANS_OS : REYES_TRANS_NONE)
+					    : !strcmp(m, "transparent") ? REYES_TRANS_NONE
+					    : !strcmp(m, "opaque") ? REYES_TRANS_OPAQUE : REYES_TRANS_OS;
 			a->objset |= OBJ_VISIBILITY;
-		} else if (visibility && (strcmp(pname, "camera") == 0 || strcmp(pname, "diffuse") == 0 ||
-					  strcmp(pname, "specular") == 0 || strcmp(pname, "photon") == 0)) {
-			/* Everything is seen by the camera; no ray tracing. */
+		} else if (visibility && num1 && (strcmp(pname, "camera") == 0 ||
+						  strcmp(pname, "diffuse") == 0 ||
+						  strcmp(pname, "specular") == 0 ||
+						  strcmp(pname, "trace") == 0)) {
+			bool on = v->nums[0] != 0;
+			if (pname[0] == 'c')
+				a->ray.camera = on;
+			if (pname[0] == 'd' || pname[0] == 't')
+				a->ray.diffuse = on;
+			if (pname[0] == 's' || pname[0] == 't')
+				a->ray.specular = on;
+			a->objset |= OBJ_VISIBILITY;
+		} else if (visibility && strcmp(pname, "photon") == 0) {
+			reyes_ri_warn(ri, p->loc, "visibility \"photon\": relight casts no photons; "
+				      "ignored");
 		} else {
 			reyes_ri_warn(ri, p->loc, "unknown attribute '%s' '%s' ignored", name,
 				      pname);

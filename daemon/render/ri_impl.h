@@ -151,6 +151,7 @@ struct attrstate {
 	float dbound;
 	const char *dbound_space;
 	bool casts_shadows;
+	struct reyes_ray_attrs ray;
 	float ubasis[16], vbasis[16];
 	uint32_t ustep, vstep;
 	float texcoords[8];             /* TextureCoordinates s1 t1 ... s4 t4 */
@@ -433,6 +434,10 @@ const struct block *reyes_ri_find_block(const struct ri *ri, enum blk kind);
 
 /** The attributes of ri_detail.c at their defaults (no Detail, no DetailRange). */
 void reyes_ri_detail_init(struct attrstate *a);
+
+/* Attribute "shade" and "trace" (@name), Option "trace" (ri_trace.c). */
+void reyes_ri_trace_attribute(struct ri *ri, const struct rib_request *r, const char *name);
+void reyes_ri_trace_option(struct ri *ri, const struct rib_request *r);
 
 /**
  * The part of the samples that see primitives under @a (DetailRange over

@@ -40,6 +40,7 @@ void reyes_ri_options_init(struct ri *ri, struct optstate *s)
 	o->pixel_aspect = 1;
 	o->crop[1] = o->crop[3] = 1;
 	o->fov = 90;
+	o->trace_maxdepth = 10;
 	o->clip_near = DEFAULT_NEAR;
 	o->clip_far = DEFAULT_FAR;
 	o->xsamples = o->ysamples = 2;
@@ -542,6 +543,10 @@ void reyes_ri_req_option(struct ri *ri, const struct rib_request *r)
 		return;
 	if (strcmp(name, "shading") == 0) {
 		shading_option(ri, r);
+		return;
+	}
+	if (strcmp(name, "trace") == 0) {
+		reyes_ri_trace_option(ri, r);
 		return;
 	}
 	if (strcmp(name, "searchpath") != 0) {

@@ -1199,8 +1199,10 @@ static void instance_attrs(struct attrstate *a, const struct attrstate *def)
 		a->dbound = def->dbound;
 		a->dbound_space = def->dbound_space;
 	}
-	if (set & OBJ_VISIBILITY)
+	if (set & OBJ_VISIBILITY) {
 		a->casts_shadows = def->casts_shadows;
+		a->ray = def->ray;
+	}
 	if (set & OBJ_TEXCOORDS) {
 		memcpy(a->texcoords, def->texcoords, sizeof(a->texcoords));
 		a->has_texcoords = def->has_texcoords;

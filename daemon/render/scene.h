@@ -73,6 +73,7 @@ struct reyes_options {
 	const char *include_path;       /* where shaders' #include look after their own folder */
 	/* Option "shading" "specularmodel": specular()'s highlight (default 0, PRMan's) */
 	enum sl_specular_model specular_model;
+	uint32_t trace_maxdepth;        /* Option "trace" "maxdepth": rays in a path (default 10) */
 	float world_to_camera[16];      /* the transform at WorldBegin (at shutter open) */
 	float world_to_camera1[16];     /* at shutter close: a moving camera's second sample */
 	bool camera_moving;             /* world_to_camera1 differs from world_to_camera */
@@ -108,6 +109,27 @@ struct reyes_light {
 };
 
 /** An attribute bundle: shared by all primitives declared while it was current. */
+/* How a primitive's hits by a ray type are shaded (Attribute "shade" "...hitmode"). */
+enum reyes_hitmode { REYES_HIT_PRIMITIVE, REYES_HIT_SHADER };
+
+/* What shadow rays see of a primitive (Attribute "visibility" "transmission"). */
+enum reyes_transmission {
+	REYES_TRANS_NONE,     /* 0, "transparent": not seen */
+	REYES_TRANS_OPAQUE,   /* "opaque": blocks all light */
+	REYES_TRANS_OS,       /* 1, "Os", "shader": lets 1 - Os through */
+};
+
+/* Ray tracing (ri.c): which rays see the primitive, and how. */
+struct reyes_ray_attrs {
+	bool camera;                  /* "visibility" "camera" (default 1): the hider sees it */
+	bool specular, diffuse;       /* seen by specular and diffuse rays (default 0) */
+	uint8_t transmission;         /* enum reyes_transmission (default REYES_TRANS_OS) */
+	uint8_t hitmode[3];           /* enum reyes_hitmode per enum sl_ray_type */
+	float bias;                   /* Attribute "trace" "bias" (default 0.01) */
+	uint32_t max_specular_depth;  /* "maxspeculardepth" (default 2) */
+	uint32_t max_diffuse_depth;   /* "maxdiffusedepth" (default 1) */
+};
+
 struct reyes_attrs {
 	float Cs[3], Os[3];                   /* Color, Opacity */
 	const struct reyes_shader *surface;   /* NULL: the default surface */
@@ -123,6 +145,7 @@ struct reyes_attrs {
 	float displacement_bound;             /* Attribute "displacementbound" "sphere" */
 	const char *displacement_bound_space; /* its coordinate system, default "object" */
 	bool casts_shadows;                   /* Attribute "visibility" "transmission" (default on) */
+	struct reyes_ray_attrs ray;
 	bool matte;                           /* Matte: hides what is behind, adds no colour or alpha */
 	/* TextureCoordinates: s, t at (u, v) = (0, 0), (1, 0), (0, 1), (1, 1), for
 	   quadrics and patches without s, t of their own; NULL: s = u, t = v. */

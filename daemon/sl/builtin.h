@@ -39,6 +39,9 @@ enum sl_bi {
 	SL_BI_PRINTF, SL_BI_FORMAT, SL_BI_CONCAT, SL_BI_MATCH,
 	/* internal: m * (space -> current), for `matrix "space" (...)` */
 	SL_BI_SPACEMATRIX,
+	/* ray tracing (exec_raytrace.c): through struct sl_host's trace and rayinfo */
+	SL_BI_TRACE, SL_BI_TRANSMISSION, SL_BI_OCCLUSION, SL_BI_INDIRECTDIFFUSE,
+	SL_BI_RAYLEVEL, SL_BI_ISSHADOWRAY, SL_BI_RAYINFO,
 	SL_BI_COUNT
 };
 
@@ -51,6 +54,9 @@ enum {
 	SL_BIF_SIDE_EFFECT = 1 << 4, /* printing: never removed as dead code */
 	SL_BIF_MESSAGE = 1 << 5,     /* message passing: reads another shader or the renderer */
 	SL_BIF_GLOBALS = 1 << 6,     /* reads global variables not among its arguments */
+	SL_BIF_RAYS = 1 << 7,        /* casts rays: runs in the renderer, never on the GPU */
+	SL_BIF_RAYLIT = 1 << 8,      /* brings back light from what its rays hit (lit by the
+					lights there): a bake freezes it */
 };
 
 /**

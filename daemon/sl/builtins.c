@@ -14,6 +14,8 @@
 #define SE SL_BIF_SIDE_EFFECT
 #define MSG SL_BIF_MESSAGE
 #define G SL_BIF_GLOBALS
+#define RAY SL_BIF_RAYS
+#define LIT SL_BIF_RAYLIT
 
 /* Overloads of a function that maps float to float and triple to triple componentwise. */
 #define COMPONENTWISE1(name, id) \
@@ -213,6 +215,18 @@ const struct sl_builtin sl_builtins[] = {
 
 	/* internal, emitted by the compiler for `matrix "space" (...)` */
 	{ "__spacematrix", "m:sm", SL_BI_SPACEMATRIX, 0 },
+
+	/* ray tracing: "name", value options after the fixed arguments */
+	{ "trace", "c:pv*", SL_BI_TRACE, V | RAY | LIT },
+	{ "trace", "f:pv*", SL_BI_TRACE, V | RAY },
+	{ "transmission", "c:pp*", SL_BI_TRANSMISSION, V | RAY },
+	{ "occlusion", "f:pnf*", SL_BI_OCCLUSION, V | RAY },
+	{ "occlusion", "f:pn*", SL_BI_OCCLUSION, V | RAY },
+	{ "indirectdiffuse", "c:pnf*", SL_BI_INDIRECTDIFFUSE, V | RAY | LIT },
+	{ "indirectdiffuse", "c:pn*", SL_BI_INDIRECTDIFFUSE, V | RAY | LIT },
+	{ "raylevel", "f:", SL_BI_RAYLEVEL, V | MSG },
+	{ "isshadowray", "f:", SL_BI_ISSHADOWRAY, V | MSG },
+	{ "rayinfo", "f:s&?", SL_BI_RAYINFO, MSG },
 };
 
 const uint32_t sl_nbuiltins = sizeof(sl_builtins) / sizeof(sl_builtins[0]);

@@ -401,6 +401,35 @@ const char *sl_program_atmosphere_nonaffine(const struct sl_program *p, struct s
 	return f.why;
 }
 
+uint32_t sl_program_report_frozen_rays(const struct sl_program *p, FILE *diag, bool error)
+{
+	uint32_t n = 0;
+	for (uint32_t i = 0; i < p->ncode; i++) {
+		const struct sl_insn *in = &p->code[i];
+		if (in->op != SL_OP_CALL || in->bi < 0)
+			continue;
+		const struct sl_builtin *b = &sl_builtins[in->bi];
+		bool lit = b->flags & SL_BIF_RAYLIT;
+		if (!lit && b->id == SL_BI_ENVIRONMENT && in->nargs > 0 && in->args[0] >= 0) {
+			/* environment("raytrace", ...) of a constant name (one a parameter
+			   gives is known at run time only) */
+			const struct sl_reg *r = &p->regs[in->args[0]];
+			lit = r->kind != SL_REG_CONST ||
+			      (r->cindex < p->nstrings && !strcmp(p->strings[r->cindex], "raytrace"));
+			lit = lit && r->kind == SL_REG_CONST;
+		}
+		if (!lit)
+			continue;
+		const char *file = in->loc.file < p->nfiles ? p->files[in->loc.file] : p->name;
+		fprintf(diag, "%s:%u: %s: %s() brings back light from what its rays hit: the "
+			"preview keeps the value baked with the scene's lights (it does not follow "
+			"light edits; relight render does)\n", file, in->loc.line,
+			error ? "error" : "warning", b->name);
+		n++;
+	}
+	return n;
+}
+
 bool sl_program_report_nonaffine(const struct sl_program *p, FILE *diag, bool error)
 {
 	struct sl_loc at = { 0 };

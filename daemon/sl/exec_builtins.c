@@ -1120,6 +1120,10 @@ static void do_texture(struct sl_exec *x, const struct sl_insn *in, enum tex_kin
 	int ncoord = 0;
 	while (2 + ncoord < in->nargs && !is_string(x, a[2 + ncoord]))
 		ncoord++;
+	if (kind != TEX_TEXTURE && ncoord >= 1 && !strcmp(q.name, "raytrace")) {
+		sl_exec_ray_lookup(x, in, kind == TEX_SHADOW, ncoord >= 4 ? 4 : 1);
+		return;
+	}
 	if (kind == TEX_TEXTURE) {
 		float *buf = sl_exec_scratch(x, 8 * s);
 		float *sc[4], *tc[4];
@@ -1266,6 +1270,9 @@ static void do_query(struct sl_exec *x, const struct sl_insn *in, int id)
 		case SL_BI_RENDERERINFO:
 			ok = h->rendererinfo &&
 			     h->rendererinfo(h->user, name, type, alen, vals, svals);
+			break;
+		case SL_BI_RAYINFO:
+			ok = h->rayinfo && h->rayinfo(h->user, name, type, alen, vals, svals);
 			break;
 		default:
 			ok = h->textureinfo && h->textureinfo(h->user, name, sget(x, a[1], 0, i0),
@@ -1638,6 +1645,7 @@ void sl_exec_builtin(struct sl_exec *x, const struct sl_insn *in)
 		do_texture(x, in, TEX_SHADOW);
 		break;
 	case SL_BI_TEXTUREINFO: case SL_BI_ATTRIBUTE: case SL_BI_OPTION: case SL_BI_RENDERERINFO:
+	case SL_BI_RAYINFO:
 		do_query(x, in, id);
 		break;
 	case SL_BI_LIGHTSOURCE:
@@ -1658,6 +1666,10 @@ void sl_exec_builtin(struct sl_exec *x, const struct sl_insn *in)
 		break;
 	case SL_BI_PRINTF:
 		do_printf(x, in);
+		break;
+	case SL_BI_TRACE: case SL_BI_TRANSMISSION: case SL_BI_OCCLUSION:
+	case SL_BI_INDIRECTDIFFUSE: case SL_BI_RAYLEVEL: case SL_BI_ISSHADOWRAY:
+		sl_exec_ray_builtin(x, in, id);
 		break;
 	case SL_BI_FORMAT: case SL_BI_CONCAT: case SL_BI_MATCH:
 		do_strings(x, in, id);

@@ -113,6 +113,14 @@ const char *sl_exec_strdup(struct sl_exec *x, const char *s);
  * Print "FILE:LINE:COL: warning: MESSAGE" once per instruction, and once a
  * process for all the executors of every thread (counted: sl_exec_warning_counts).
  */
+/* The ray-tracing built-ins (exec_raytrace.c): trace, transmission, occlusion,
+ * indirectdiffuse, raylevel, isshadowray, by id. */
+void sl_exec_ray_builtin(struct sl_exec *x, const struct sl_insn *in, int id);
+
+/* shadow() (@shadow) or environment() of the map "raytrace", the lookup
+ * point or direction at argument 2, @ncoord coordinates before the options. */
+void sl_exec_ray_lookup(struct sl_exec *x, const struct sl_insn *in, bool shadow, int ncoord);
+
 void sl_exec_warn_once(struct sl_exec *x, const struct sl_insn *in, const char *fmt, ...)
 	__attribute__((format(printf, 3, 4)));
 

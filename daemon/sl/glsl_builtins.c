@@ -2262,6 +2262,12 @@ void sl_glsl_call(struct glsl_gen *g, const struct sl_insn *in)
 	case SL_BI_MATCH:
 		call_match(g, in);
 		break;
+	case SL_BI_TRACE: case SL_BI_TRANSMISSION: case SL_BI_OCCLUSION:
+	case SL_BI_INDIRECTDIFFUSE: case SL_BI_RAYLEVEL: case SL_BI_ISSHADOWRAY: case SL_BI_RAYINFO:
+		sl_glsl_error(g, in, "%s() casts rays, which only the renderer does: on the GPU it "
+			      "is a value the bake keeps (it must not depend on the lights or on "
+			      "edited parameters)", bi_name(in));
+		break;
 	case SL_BI_COUNT:
 	default:
 		sl_glsl_error(g, in, "invalid program: unknown built-in");

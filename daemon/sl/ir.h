@@ -252,6 +252,15 @@ const char *sl_program_atmosphere_nonaffine(const struct sl_program *p, struct s
 /** Say so on @diag, as FILE:LINE: a warning or an @error; true when it is not a sum. */
 bool sl_program_report_nonaffine(const struct sl_program *p, FILE *diag, bool error);
 
+/**
+ * The ray-tracing calls of @p whose value the bake keeps though it comes from
+ * lit surfaces (trace(), indirectdiffuse(), environment("raytrace") of a
+ * non-constant or "raytrace" name): say, as FILE:LINE, that the preview
+ * keeps their baked value, which does not follow light edits; a warning, or
+ * an @error. The number of calls said.
+ */
+uint32_t sl_program_report_frozen_rays(const struct sl_program *p, FILE *diag, bool error);
+
 /** Index of parameter @name, or -1. */
 int sl_program_find_param(const struct sl_program *prog, const char *name);
 

@@ -316,7 +316,11 @@ static struct sl_type check_binary_node(struct sema *s, struct sl_ast *e, struct
 			a = check_expr(s, e->a, expect);
 		settle_tuple(s, e->a, expect);
 		a = e->a->ty;
-		b = check_expr(s, e->b, a);
+		/* float * f(...) in a colour's place: f's colour form, as for a lone call */
+		bool arith = op == SL_TOK_PLUS || op == SL_TOK_MINUS || op == SL_TOK_STAR ||
+			     op == SL_TOK_SLASH;
+		b = check_expr(s, e->b, arith && a.base == SL_TYPE_FLOAT && a.arraylen < 0 &&
+					sl_type_is_triple(expect.base) && expect.arraylen < 0 ? expect : a);
 		settle_tuple(s, e->b, sl_type_is_triple(a.base) ? a : expect);
 		b = e->b->ty;
 	}
@@ -761,9 +765,7 @@ static struct sl_type check_call(struct sema *s, struct sl_ast *e, struct sl_typ
 			sl_error(s->ctx, e->loc,
 				 "function '%s' calls itself: RSL functions cannot be recursive",
 				 e->name);
-		else if (!strcmp(e->name, "trace") || !strcmp(e->name, "gather") ||
-			 !strcmp(e->name, "transmission") || !strcmp(e->name, "occlusion") ||
-			 !strcmp(e->name, "indirectdiffuse") || !strcmp(e->name, "photonmap") ||
+		else if (!strcmp(e->name, "gather") || !strcmp(e->name, "photonmap") ||
 			 !strcmp(e->name, "bake3d") || !strcmp(e->name, "texture3d"))
 			sl_error(s->ctx, e->loc, "'%s' is not supported by relight", e->name);
 		else

@@ -1161,6 +1161,140 @@ static void test_finite_results(void)
 	done(&r);
 }
 
+/*
+ * The ray-tracing built-ins against a host whose scene is the plane z = 1
+ * (colour (0.2, 0.4, 0.6), opaque), seen by every ray type; the grid lies at
+ * z = 0 facing it (N = (0, 0, 1)). Closed forms: trace() along +z brings
+ * back the plane's colour at distance 1; transmission() to a point past the
+ * plane is 0, short of it 1; occlusion() over the hemisphere is 1, and with
+ * "maxdist" 1.5 the cosine-weighted fraction of directions within
+ * acos(2/3) of N, sin^2 = 5/9, within 1 % at 1024 samples;
+ * indirectdiffuse() is the plane's colour. raylevel(), isshadowray() and
+ * rayinfo() answer from the host's rayinfo.
+ */
+static uint32_t mock_rays;
+
+struct cap_run {
+	struct run *r;
+	const struct sl_host *h;
+};
+
+static void cap_go(void *arg)
+{
+	struct cap_run *c = arg;
+	go(c->r, c->h);
+}
+
+static bool mock_trace(void *user, struct sl_ray_query *q)
+{
+	(void)user;
+	for (uint32_t k = 0; k < q->n; k++) {
+		const float *o = q->org + 3 * k, *d = q->dir + 3 * k;
+		float len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+		float t = d[2] > 0 ? (1 - o[2]) / (d[2] / len) : 1e30f;
+		float maxd = q->maxdist ? q->maxdist[k] : 1e30f;
+		bool hit = t < 1e30f && t >= 0 && t <= maxd;
+		static const float col[3] = { 0.2f, 0.4f, 0.6f };
+		if (q->dist)
+			q->dist[k] = hit ? t : 1e30f;
+		for (int c = 0; c < 3; c++) {
+			if (q->Ci)
+				q->Ci[3 * k + (uint32_t)c] = hit ? col[c] : 0;
+			if (q->Oi)
+				q->Oi[3 * k + (uint32_t)c] = hit ? 1 : 0;
+			if (q->trans)
+				q->trans[3 * k + (uint32_t)c] = hit ? 0 : 1;
+		}
+	}
+	mock_rays += q->n;
+	return true;
+}
+
+static bool mock_rayinfo(void *user, const char *name, int type, int arraylen, float *o,
+			 const char **so)
+{
+	(void)user;
+	(void)arraylen;
+	if (!strcmp(name, "depth") && type == SL_TYPE_FLOAT) {
+		*o = 2;
+		return true;
+	}
+	if (!strcmp(name, "type") && type == SL_TYPE_STRING) {
+		*so = "transmission";
+		return true;
+	}
+	return false;
+}
+
+static const char ray_src[] =
+	"surface r(output varying color tc = -1, id = -1, tm = -1, tx = -1, none = -1;\n"
+	"  output varying float td = -1, tdmiss = -1, oc = -1, ocmax = -1, ocz = -1, lvl = -1,\n"
+	"  shad = -1, ri = -1, rd = -1;)\n"
+	"{\n"
+	"  tc = trace(P, vector(0, 0, 1));\n"
+	"  color ct = trace(P, vector(0, 0, -1)); none = ct;\n"
+	"  float d = trace(P, vector(0, 0, 1)); td = d;\n"
+	"  float dm = trace(P, vector(0, 0, -1)); tdmiss = dm;\n"
+	"  tm = transmission(P, P + vector(0, 0, 2));\n"
+	"  tx = transmission(P, P + vector(0, 0, 0.5));\n"
+	"  oc = occlusion(P, N, 256);\n"
+	"  ocmax = occlusion(P, N, 1024, \"maxdist\", 1.5);\n"
+	"  ocz = occlusion(P, normal(0, 0, 0), 16);\n"
+	"  id = indirectdiffuse(P, N, 64);\n"
+	"  lvl = raylevel(); shad = isshadowray();\n"
+	"  float depth = -1; ri = rayinfo(\"depth\", depth); rd = depth;\n"
+	"}\n";
+
+static void test_raytracing(void)
+{
+	struct sl_host host = { 0 };
+	host.trace = mock_trace;
+	host.rayinfo = mock_rayinfo;
+	mock_rays = 0;
+	struct run r = run_src(ray_src, &host);
+	double want = 5.0 / 9.0;
+	for (uint32_t i = 0; i < NPTS && r.ok; i++) {
+		static const float col[3] = { 0.2f, 0.4f, 0.6f };
+		for (int c = 0; c < 3; c++) {
+			CHECK_NEAR(out(&r, "tc", c, i), col[c], 1e-7);
+			CHECK_NEAR(out(&r, "none", c, i), 0, 0);
+			CHECK_NEAR(out(&r, "tm", c, i), 0, 0);
+			CHECK_NEAR(out(&r, "tx", c, i), 1, 0);
+			CHECK_NEAR(out(&r, "id", c, i), col[c], 1e-6);
+		}
+		CHECK_NEAR(out(&r, "td", 0, i), 1, 1e-6);
+		CHECK_NEAR(out(&r, "tdmiss", 0, i), 1e30, 1e24);
+		CHECK_NEAR(out(&r, "oc", 0, i), 1, 0);
+		CHECK_NEAR(out(&r, "ocmax", 0, i), want, 0.01 * want);
+		CHECK_NEAR(out(&r, "ocz", 0, i), 0, 0);
+		CHECK_NEAR(out(&r, "lvl", 0, i), 2, 0);
+		CHECK_NEAR(out(&r, "shad", 0, i), 1, 0);
+		CHECK_NEAR(out(&r, "ri", 0, i), 1, 0);
+		CHECK_NEAR(out(&r, "rd", 0, i), 2, 0);
+	}
+	printf("occlusion within acos(2/3): %.5f at point 0, closed form %.5f (tolerance 1%%); "
+	       "%u rays\n", r.ok ? out(&r, "ocmax", 0, 0) : -1.0, want, mock_rays);
+	/* 15 points: 6 single rays each, 256 + 1024 + 64 hemisphere samples; none for N = 0 */
+	CHECK(mock_rays == NPTS * (6 + 256 + 1024 + 64));
+	done(&r);
+
+	/* a host that cannot ray trace: what a miss gives, and a warning */
+	char err[4096];
+	struct sl_host none = { 0 };
+	struct run n = setup(ray_src);
+	struct cap_run cr = { &n, &none };
+	capture_stderr(err, sizeof(err), cap_go, &cr);
+	CHECK(n.ok);
+	CHECK(strstr(err, "cannot ray trace") != NULL);
+	for (uint32_t i = 0; i < NPTS && n.ok; i++) {
+		CHECK_NEAR(out(&n, "tc", 0, i), 0, 0);
+		CHECK_NEAR(out(&n, "tm", 1, i), 1, 0);
+		CHECK_NEAR(out(&n, "oc", 0, i), 0, 0);
+		CHECK_NEAR(out(&n, "lvl", 0, i), 0, 0);
+	}
+	done(&n);
+}
+
 /* Every id of enum sl_bi was called by some test shader. */
 static void test_coverage(void)
 {
@@ -1186,6 +1320,7 @@ int main(void)
 	RUN(test_messages);
 	RUN(test_strings);
 	RUN(test_finite_results);
+	RUN(test_raytracing);
 	RUN(test_coverage);
 	return test_finish();
 }

@@ -30,7 +30,9 @@ static const double PI = 3.14159265358979323846;
  * cosine-weighted fraction of the hemisphere it covers is its projected solid
  * angle over pi, (r/D)^2 cos(theta), wherever the whole cap is above the
  * horizon. Directly below the centre that is (r/d)^2: within 1 % there (the
- * issue's bound) with 1024 samples. Elsewhere the pixel (2x2 samples of
+ * issue's bound) with 16384 samples, the sphere diced at ShadingRate 0.25 (its
+ * inscribed facets make it 0.1 % smaller; 1024 samples resolve 1/1024 of the
+ * hemisphere, 2.4 % of (r/d)^2 for the smaller sphere). Elsewhere the pixel (2x2 samples of
  * smoothly interpolated shading over one-pixel micropolygons) is compared with
  * the closed form averaged over the pixel: within 2 % of the centre's value.
  * With "maxdist" short of the sphere nothing is occluded: 0 exactly.
@@ -59,12 +61,13 @@ static void test_occlusion_sphere(void)
 			 "WorldBegin\n"
 			 "  AttributeBegin\n"
 			 "    Attribute \"visibility\" \"int camera\" 0 \"int diffuse\" 1\n"
+			 "    ShadingRate 0.25\n"
 			 "    Surface \"constant\"\n"
 			 "    Translate 0 0 %g\n"
 			 "    Sphere %g %g %g 360\n"
 			 "  AttributeEnd\n"
 			 "  ShadingInterpolation \"smooth\"\n"
-			 "  Surface \"occl\" \"samples\" 1024 \"maxdist\" %g\n"
+			 "  Surface \"occl\" \"samples\" 16384 \"maxdist\" %g\n"
 			 "  Polygon \"P\" [-3 -3 5  3 -3 5  3 3 5  -3 3 5]\n"
 			 "WorldEnd\n",
 			 5 - d, r, -r, r, maxdist);
@@ -188,7 +191,9 @@ static void test_mirror_radius(void)
  * intensity 1 shining along -z. The reflected ray of pixel (X, Y) travels
  * along -z and meets the sphere where its normal is (X, Y, sqrt(R^2 - X^2 -
  * Y^2)) / R, so the pixel is sqrt(1 - (X^2 + Y^2) / R^2) averaged over the
- * pixel. Pixels within 0.9 R of the middle: within 0.01 (the ray grid's
+ * pixel (the mirror's shading interpolated over micropolygons of ShadingRate
+ * 0.25: a constant one would move the picture by half a micropolygon, and
+ * larger ones bend the curve sqrt(1 - rho^2) by more near 0.9 R). Pixels within 0.9 R of the middle: within 0.01 (the ray grid's
  * tessellation moves a hit by a fraction of a micropolygon).
  */
 static void test_mirror_lit_sphere(void)
@@ -209,6 +214,8 @@ static void test_mirror_lit_sphere(void)
 		"    Translate 0 0 5\n"
 		"    Sphere 0.8 -0.8 0.8 360\n"
 		"  AttributeEnd\n"
+		"  ShadingInterpolation \"smooth\"\n"
+		"  ShadingRate 0.25\n"
 		"  Surface \"mirror\"\n"
 		"  Polygon \"P\" [-3 -3 10  3 -3 10  3 3 10  -3 3 10]\n"
 		"WorldEnd\n";
@@ -365,7 +372,7 @@ done:
 }
 
 /*
- * transmission() from a plane z = 10 toward the camera, through slabs only
+ * transmission() from a plane z = 10 toward the camera (to z = 0.5), through slabs only
  * shadow rays see: z = 5 everywhere, opacity (0.25, 0.5, 0.75), its
  * transmission "Os"; z = 3 over x < 0, opacity 0.5, "Os"; z = 2 over y < 0,
  * "transparent" (not seen); z = 1 over x > 0.5, "opaque". The light that gets
@@ -402,7 +409,7 @@ static void test_transmission_slabs(void)
 		"    Opacity [0.1 0.1 0.1]\n"
 		"    Polygon \"P\" [0.5 -2 1  2 -2 1  2 2 1  0.5 2 1]\n"
 		"  AttributeEnd\n"
-		"  Surface \"transm\"\n"
+		"  Surface \"transm\" \"reach\" 9.5\n"
 		"  Polygon \"P\" [-3 -3 10  3 -3 10  3 3 10  -3 3 10]\n"
 		"WorldEnd\n";
 	struct reyes_image im = { 0 };

@@ -414,6 +414,27 @@ static void test_handedness(void)
 
 /* ---- attributes and lights ---- */
 
+static void check_ray_attributes(const struct reyes_scene *sc)
+{
+	CHECK(sc->nprims == 3);
+	if (sc->nprims != 3)
+		return;
+	CHECK(sc->opts.trace_maxdepth == 4);
+	const struct reyes_ray_attrs *a = &sc->prims[0].attrs->ray, *b = &sc->prims[1].attrs->ray;
+	const struct reyes_ray_attrs *c = &sc->prims[2].attrs->ray;
+	CHECK(!a->camera && a->specular && !a->diffuse && a->transmission == REYES_TRANS_OPAQUE);
+	CHECK(a->hitmode[SL_RAY_SPECULAR] == REYES_HIT_PRIMITIVE);
+	CHECK(a->hitmode[SL_RAY_DIFFUSE] == REYES_HIT_SHADER);
+	CHECK(a->bias == 0.5f && a->max_specular_depth == 3 && a->max_diffuse_depth == 0);
+	CHECK(b->specular && b->diffuse && b->transmission == REYES_TRANS_NONE && !b->camera);
+	/* the defaults: the camera sees it, no reflection or diffuse rays do; shadow
+	 * rays see its Os (relight casts every object's shadow by default) */
+	CHECK(c->camera && !c->specular && !c->diffuse && c->transmission == REYES_TRANS_OS);
+	CHECK(c->hitmode[SL_RAY_SPECULAR] == REYES_HIT_SHADER);
+	CHECK(c->hitmode[SL_RAY_DIFFUSE] == REYES_HIT_PRIMITIVE);
+	CHECK(c->bias == 0.01f && c->max_specular_depth == 2 && c->max_diffuse_depth == 1);
+}
+
 static void check_attributes(const struct reyes_scene *sc)
 {
 	CHECK(sc->nprims == 4 && sc->nlights == 1);
@@ -474,9 +495,32 @@ static void test_attributes(void)
 	CHECK(frames == 1);
 	CHECK_NO_DIAG();
 
-	CHECK(run("WorldBegin\nAttribute \"trace\" \"maxdepth\" 2\nWorldEnd\n", NULL));
-	CHECK_DIAG(test_fmt("%s:2: warning: unknown attribute 'trace' ignored", rib_path));
+	CHECK(run("WorldBegin\nAttribute \"photonic\" \"maxdepth\" 2\nWorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: warning: unknown attribute 'photonic' ignored", rib_path));
 	CHECK(frames == 1);
+
+	/* ray tracing: visibility, hit modes, bias and depths, Option "trace" */
+	CHECK(run("Option \"trace\" \"maxdepth\" 4\n"
+		  "WorldBegin\nAttributeBegin\n"
+		  " Attribute \"visibility\" \"int camera\" 0 \"int specular\" 1 "
+		  "\"string transmission\" \"opaque\"\n"
+		  " Attribute \"shade\" \"string specularhitmode\" \"primitive\" "
+		  "\"string diffusehitmode\" \"shader\"\n"
+		  " Attribute \"trace\" \"float bias\" 0.5 \"int maxspeculardepth\" 3 "
+		  "\"int maxdiffusedepth\" 0\n"
+		  " Sphere 1 -1 1 360\n"
+		  " Attribute \"visibility\" \"int trace\" 1 \"int transmission\" 0\n"
+		  " Sphere 1 -1 1 360\n"
+		  "AttributeEnd\nSphere 1 -1 1 360\nWorldEnd\n", check_ray_attributes));
+	CHECK_NO_DIAG();
+	CHECK(run("WorldBegin\nAttribute \"visibility\" \"string transmission\" \"fuzzy\"\n"
+		  "Attribute \"shade\" \"string specularhitmode\" \"cache\" "
+		  "\"string diffusehitmode\" \"x\"\nAttribute \"trace\" \"float bias\" -1\n"
+		  "WorldEnd\n", NULL));
+	CHECK_DIAG(test_fmt("%s:2: warning: visibility \"transmission\" \"fuzzy\" is not", rib_path));
+	CHECK_DIAG("relight keeps no radiance cache");
+	CHECK_DIAG("must be \"primitive\" or \"shader\"");
+	CHECK_DIAG("trace \"bias\" takes one number, at least 0: ignored");
 }
 
 static void check_illuminate(const struct reyes_scene *sc)
