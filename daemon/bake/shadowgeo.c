@@ -48,7 +48,7 @@ static bool any_string_param_set(const struct reyes_shader *sh, const struct sl_
 {
 	for (uint32_t i = 0; i < prog->nparams; i++) {
 		const struct sl_param *p = &prog->params[i];
-		if (p->type.base != SL_TYPE_STRING || p->type.arraylen || p->output)
+		if (p->type.base != SL_TYPE_STRING || p->type.arraylen >= 0 || p->output)
 			continue;
 		const char *v = string_param_value(sh, prog, p);
 		if (!v || *v)
@@ -91,6 +91,24 @@ bool bake_light_casts_shadows(const struct reyes_scene *scene, uint32_t light)
 			continue;
 		if (names_map(sh, prog, in->args[0]))
 			return true;
+	}
+	return false;
+}
+
+/* Does some light name the map "raytrace" (a ray-traced shadow), in a parameter's value? */
+static bool traces_shadows(const struct reyes_scene *scene)
+{
+	for (uint32_t l = 0; l < scene->nlights; l++) {
+		const struct reyes_shader *sh = &scene->lights[l].shader;
+		const struct sl_program *prog = sh->prog;
+		for (uint32_t i = 0; prog && i < prog->nparams; i++) {
+			const struct sl_param *p = &prog->params[i];
+			if (p->type.base != SL_TYPE_STRING || p->type.arraylen >= 0 || p->output)
+				continue;
+			const char *v = string_param_value(sh, prog, p);
+			if (v && !strcmp(v, "raytrace"))
+				return true;
+		}
 	}
 	return false;
 }
@@ -307,8 +325,16 @@ bool bake_shadow_geometry(const struct reyes_scene *scene, float rate, FILE *dia
 		fprintf(diag, "relight: error: the camera transform cannot be inverted\n");
 		return false;
 	}
+	/*
+	 * With a ray-traced shadow the GPU traces this geometry where the
+	 * renderer traces its own: dice it as the renderer dices what rays see
+	 * (each primitive's ShadingRate, every piece as if the camera faced it),
+	 * so that both shadows have the same edges.
+	 */
+	bool rays = traces_shadows(scene);
 	struct reyes_dice_opts o = {
-		.rate = rate,
+		.rate = rays ? 0.0f : rate,
+		.orient_free = rays,
 		.cull_to_view = false,
 		.casters_only = true,
 		.diag = diag,

@@ -192,6 +192,7 @@ struct gpu_shot {
 	uint32_t *pick;            /* per pixel: the object of its heaviest sample (UINT32_MAX: none) */
 	struct gpu_shadow_geometry *shadow_geo;  /* NULL: the shot has none */
 	bool shadow_bvh;           /* shadow_geo's ray-tracing hierarchy is built */
+	bool traces_shadows;       /* some light's string parameter is "raytrace" at load */
 	float trace_bias;          /* ray-traced shadows' start offset without a "bias" option */
 	struct gpu_deep_stats deep_stats;        /* of the last deep map rendered or tried */
 	uint32_t deep_maps_rendered;
@@ -657,6 +658,7 @@ static bool bind_maps(struct gpu_shot *s, const struct kernel *k, const struct l
 			bool rt = maps && L && L->map_names && L->map_names[i] && s->shadow_bvh &&
 				  !strcmp(L->map_names[i], "raytrace");
 			gpu_uniform_int(k->prog, u, rt ? 1 : 0);
+			if (getenv("RT_DBG")) fprintf(stderr, "bind %s = %d (%s)\n", u, rt, L && L->map_names && L->map_names[i] ? L->map_names[i] : "-");
 		}
 	}
 	if (k->layout.bvh_unit) {
@@ -1165,7 +1167,14 @@ static bool run_shadow(struct graph_node *n, void *user, bool *changed)
 		gpu_shadow_map_destroy(L->maps[i]);
 		L->maps[i] = NULL;
 		*changed = true;
-		if (site->raytrace && !strcmp(name, "raytrace")) {
+		if (!site->raytrace && !strcmp(name, "raytrace")) {
+			if (!L->warned_rt)
+				fprintf(s->diag, "relight: warning: light '%s': its shadow is \"raytrace\" "
+					"now, which the shot's kernels do not trace (no light traced its "
+					"shadows when the shot was loaded): no shadow in the preview\n",
+					L->name);
+			L->warned_rt = true;
+		} else if (site->raytrace && !strcmp(name, "raytrace")) {
 			if (!shadow_hierarchy(s) && !L->warned_rt) {
 				fprintf(s->diag, "relight: warning: light '%s': its ray-traced shadow is "
 					"not previewed (the shot has no shadow geometry to trace: bake "
@@ -1391,6 +1400,8 @@ static bool load_lights(struct gpu_shot *s)
 		L->cur.on = true;
 		if (!eval_params(L->init, s->lshaders[k].prog, L->to_camera, s->w2c, &L->cur))
 			return fail(s, "light '%s': its parameter defaults failed", name);
+		for (uint32_t q = 0; q < L->cur.ns; q++)
+			s->traces_shadows |= L->cur.s[q] && !strcmp(L->cur.s[q], "raytrace");
 		L->frozen = true;
 		L->shadow_density = 1.0f;
 		L->node = graph_add(s->graph, name, GRAPH_PARAMS, NULL, NULL);
@@ -1407,6 +1418,7 @@ static bool make_kernel(struct gpu_shot *s, struct surface *sf, const struct sl_
 {
 	struct sl_slice slice = sf->spec->slice;
 	slice.input_steps = steps;
+	slice.raytrace_shadows = s->traces_shadows;
 	slice.per_light = batch;
 	slice.sink = batch ? batch_sink : NULL;
 	/* the colour alone: the opacity comes with the pixels, output

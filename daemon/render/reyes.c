@@ -2001,6 +2001,7 @@ bool reyes_dice(const struct reyes_scene *scene, const struct reyes_dice_opts *o
 	r.max_points = opts->max_grid ? opts->max_grid : 1024;
 	r.nthreads = 1;
 	r.keep_unseen = !opts->cull_to_view;
+	r.orient_free = opts->orient_free && r.keep_unseen;
 	r.rate = opts->rate;
 	r.tex = reyes_texsys_create(opts->texture_path ? opts->texture_path : so->texture_path,
 				    r.cam.c2w, r.diag);

@@ -113,6 +113,9 @@ struct reyes_dice_opts {
 	 */
 	bool cull_to_view;
 	bool casters_only;         /* leave out primitives that cast no shadows */
+	/* Dice every piece by the size of a pixel at its distance, as if the
+	 * camera faced it (with cull_to_view false): what the renderer's rays see. */
+	bool orient_free;
 	uint32_t max_grid;         /* points per grid, 0: 1024 */
 	FILE *diag;                /* NULL: stderr */
 	const char *texture_path;  /* for displacement shaders, NULL: the scene's option */

@@ -147,11 +147,13 @@ static bool add_grid(struct reyes_rt *rt, const struct reyes_prim *prim, struct 
 			uint32_t cidx = j * (nu - 1) + i, k = j * nu + i;
 			if (keep && !keep[cidx])
 				continue;
+			/* Embree cuts a quad (a, b, c, d) along b-d: given from the
+			   micropolygon's second corner, that is the hider's v0-v2 cut */
 			uint32_t *v = rg->quads + 4 * (size_t)rg->nquads;
-			v[0] = k;
-			v[1] = k + 1;
-			v[2] = k + 1 + nu;
-			v[3] = k + nu;
+			v[0] = k + 1;
+			v[1] = k + 1 + nu;
+			v[2] = k + nu;
+			v[3] = k;
 			rg->cell[rg->nquads++] = cidx;
 		}
 	rg->g = *g;
@@ -616,7 +618,8 @@ bool reyes_rt_trace(struct tctx *t, struct sl_ray_query *q)
 				first = bias + th;
 			const struct rt_grid *rg = &rt->grids[rh.hit.geomID];
 			uint32_t cell = rg->cell[rh.hit.primID], nq = rg->c.nu - 1;
-			double fi = cell % nq + (double)rh.hit.u, fj = cell / nq + (double)rh.hit.v;
+			/* the quad from the corner (i + 1, j): u runs along j, v back along i */
+			double fi = cell % nq + 1.0 - (double)rh.hit.v, fj = cell / nq + (double)rh.hit.u;
 			const struct reyes_attrs *a = rg->prim->attrs;
 			float cs[3], os[3], ci[3], oi[3];
 			if (q->type == SL_RAY_TRANSMISSION || !colour) {

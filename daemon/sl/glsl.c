@@ -2052,7 +2052,8 @@ int sl_glsl_shadow_site(struct glsl_gen *g, const struct sl_insn *in)
 		return -1;
 	uint32_t k = (uint32_t)g->sites.len;
 	struct sl_glsl_shadow_site site = { p->light, param, name,
-					    p->light >= 0 && (param || !strcmp(name, "raytrace")) };
+					    p->light >= 0 && g->slice->raytrace_shadows &&
+					    (param || !strcmp(name, "raytrace")) };
 	rl_vec_push(g->sites, site);
 	p->site[pc] = (int32_t)k;
 	struct rl_strbuf *u = &g->sec[GS_UNIFORMS];

@@ -50,6 +50,13 @@ struct sl_slice {
 	 */
 	const uint8_t *input_steps;
 	/*
+	 * Lights' shadow() sites whose map is a string parameter (or the
+	 * constant "raytrace") carry the ray-traced lookup as well (struct
+	 * sl_glsl_shadow_site's raytrace): for shots some light of which traces
+	 * its shadows; the lookup costs compile time in every such kernel.
+	 */
+	bool raytrace_shadows;
+	/*
 	 * One pass per light: the slice runs once for each light alone, as
 	 * the kernel with that light only would, all passes in the same
 	 * invocation on the inputs read once (the compiler merges the

@@ -8,7 +8,10 @@
  * slab method on the reciprocal direction, whose zero components are nudged
  * to +-1e-30 so that no 0 * inf appears. Every triangle of a leaf whose
  * object casts is intersected (Moller-Trumbore, in float), and a hit at a
- * distance in (0, tmax) multiplies the transmission by 1 - opacity: the
+ * distance in (0, tmax) multiplies the transmission by 1 - opacity (its
+ * edges widened by 1e-6 in barycentric terms, so that a ray through the edge
+ * two triangles share, which float rounding could let pass between them,
+ * hits at least one, as Embree's robust mode ensures on the CPU): the
  * product is the same in any order, so the hits are not sorted, and the
  * walk stops as soon as nothing gets through (an opaque hit). A stack that
  * would overflow (deeper than the builder ever makes) gives 0 light: a
@@ -18,6 +21,7 @@
 
 const char sl_glsl_bvh_source[] =
 	"const uint RL_BVH_BIAS = 0x00800000u;\n"
+	"const float RL_BVH_EDGE = 1e-6;\n"
 	"float rl_bvh_transmission(samplerBuffer nodes, samplerBuffer tris, samplerBuffer casts,\n"
 	"                          vec3 org, vec3 dir, float tmax)\n"
 	"{\n"
@@ -63,11 +67,11 @@ const char sl_glsl_bvh_source[] =
 	"				float f = 1.0 / det;\n"
 	"				vec3 s = org - v0.xyz;\n"
 	"				float u = f * dot(s, p);\n"
-	"				if (u < 0.0 || u > 1.0)\n"
+	"				if (u < -RL_BVH_EDGE || u > 1.0 + RL_BVH_EDGE)\n"
 	"					continue;\n"
 	"				vec3 q = cross(s, e1.xyz);\n"
 	"				float v = f * dot(dir, q);\n"
-	"				if (v < 0.0 || u + v > 1.0)\n"
+	"				if (v < -RL_BVH_EDGE || u + v > 1.0 + RL_BVH_EDGE)\n"
 	"					continue;\n"
 	"				float t = f * dot(e2.xyz, q);\n"
 	"				if (t > 0.0 && t < tmax) {\n"
