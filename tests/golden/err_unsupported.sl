@@ -1,6 +1,6 @@
-// expect-error: 4:12: 'trace' is not supported by relight
+// expect-error: 4:12: 'photonmap' is not supported by relight
 surface err_unsupported()
 {
-	color c = trace(P, N);
+	color c = photonmap("caustics", P, N);
 	Ci = c;
 }
