@@ -658,7 +658,6 @@ static bool bind_maps(struct gpu_shot *s, const struct kernel *k, const struct l
 			bool rt = maps && L && L->map_names && L->map_names[i] && s->shadow_bvh &&
 				  !strcmp(L->map_names[i], "raytrace");
 			gpu_uniform_int(k->prog, u, rt ? 1 : 0);
-			if (getenv("RT_DBG")) fprintf(stderr, "bind %s = %d (%s)\n", u, rt, L && L->map_names && L->map_names[i] ? L->map_names[i] : "-");
 		}
 	}
 	if (k->layout.bvh_unit) {
