@@ -19,7 +19,7 @@
  * - No geometry lets all light through; degenerate rays (zero direction, zero
  *   or negative or NaN length, NaN origin) give a finite value in [0, 1].
  *
- * With "--bench": rays per second through a sphere field on this context.
+ * Rays per second: `relight bench --only rays` (daemon/bench/rays.c).
  */
 #include "test.h"
 #include "shadowbvh.h"
@@ -30,7 +30,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 static struct gpu_ctx *ctx;
 static const double PI = 3.14159265358979323846;
@@ -43,13 +42,6 @@ static double frand(void)
 	rng ^= rng >> 7;
 	rng ^= rng << 17;
 	return (double)(rng >> 11) / 9007199254740992.0;
-}
-
-static double now(void)
-{
-	struct timespec ts;
-	clock_gettime(CLOCK_MONOTONIC, &ts);
-	return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 /* What the hierarchy is built from: shadowrender.h's arrays. */
@@ -367,63 +359,7 @@ static void test_degenerate(void)
 	soup_free(&s);
 }
 
-/* Rays per second: shadow rays from a plane to a light through a field of spheres. */
-static int bench(void)
-{
-	struct soup s = { 0 };
-	for (int j = 0; j < 10; j++)
-		for (int i = 0; i < 10; i++) {
-			const double c[3] = { -4.5 + i, -4.5 + j, 6 + 0.5 * ((i + j) % 3) };
-			add_sphere(&s, c, 0.4, 65, 33, (uint32_t)(j * 10 + i));
-		}
-	struct gpu_shadow_geometry *g = upload(&s);
-	if (!g)
-		return 1;
-	double t0 = now();
-	char err[256];
-	if (!gpu_shadow_bvh_build(g, err, sizeof(err))) {
-		fprintf(stderr, "%s\n", err);
-		return 1;
-	}
-	double build = now() - t0;
-	uint32_t nodes, tris;
-	size_t bytes;
-	gpu_shadow_bvh_stats(g, &nodes, &tris, &bytes);
-	enum { W = 1024 };
-	const double light[3] = { 3, 2, -5 };
-	float *org = malloc(sizeof(float) * 3 * W * W), *dir = malloc(sizeof(float) * 3 * W * W);
-	float *tmax = malloc(sizeof(float) * W * W), *out = malloc(sizeof(float) * W * W);
-	for (uint32_t y = 0; y < W; y++)
-		for (uint32_t x = 0; x < W; x++) {
-			uint32_t i = y * W + x;
-			double p[3] = { -6 + 12 * (x + 0.5) / W, -6 + 12 * (y + 0.5) / W, 10 };
-			for (int k = 0; k < 3; k++) {
-				org[3 * i + (uint32_t)k] = (float)p[k];
-				dir[3 * i + (uint32_t)k] = (float)(light[k] - p[k]);
-			}
-			tmax[i] = 1;
-		}
-	gpu_shadow_bvh_trace(ctx, g, org, dir, tmax, 1024, NULL, 0, out); /* compile */
-	t0 = now();
-	bool ok = gpu_shadow_bvh_trace(ctx, g, org, dir, tmax, W * W, NULL, 0, out);
-	double secs = now() - t0;
-	uint32_t dark = 0;
-	for (uint32_t i = 0; i < W * W; i++)
-		dark += out[i] < 0.5f;
-	printf("{\"renderer\": \"%s\", \"triangles\": %u, \"nodes\": %u, \"bytes\": %zu, "
-	       "\"build_s\": %.4f, \"rays\": %u, \"trace_s\": %.4f, \"rays_per_s\": %.0f, "
-	       "\"shadowed\": %u}\n", gpu_renderer(ctx), tris, nodes, bytes, build, W * W, secs,
-	       W * W / secs, dark);
-	free(org);
-	free(dir);
-	free(tmax);
-	free(out);
-	gpu_shadow_geometry_destroy(g);
-	soup_free(&s);
-	return ok ? 0 : 1;
-}
-
-int main(int argc, char **argv)
+int main(void)
 {
 	char err[512];
 	ctx = gpu_create(err, sizeof(err));
@@ -432,15 +368,10 @@ int main(int argc, char **argv)
 			"%s\n", err);
 		return 77;
 	}
-	int rc;
-	if (argc == 2 && strcmp(argv[1], "--bench") == 0) {
-		rc = bench();
-	} else {
-		RUN(test_soup);
-		RUN(test_sphere_shadow);
-		RUN(test_degenerate);
-		rc = test_finish();
-	}
+	RUN(test_soup);
+	RUN(test_sphere_shadow);
+	RUN(test_degenerate);
+	int rc = test_finish();
 	gpu_destroy(ctx);
 	return rc;
 }
